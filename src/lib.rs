@@ -1,4 +1,343 @@
 //! `bake`: a lightmap baker for glTF scenes under captured HDR environments.
+//!
+//! ```text
+//! import ─► unwrap ─► texelize ─► environment ─► solve ─► export ─► report
+//! ```
+//! Each stage is a module with one job and plain data between stages
+//! (`Scene`, `Atlas`, `TexelSet`, `LightSet`, `Solution`). `run` strings
+//! them together for the CLI; `bake_scene` does the in-memory part for tests
+//! and library users.
 
+pub mod asset;
+pub mod cli;
+pub mod config;
 pub mod environment;
+pub mod export;
+pub mod fixtures;
+pub mod gpu;
+pub mod import;
+pub mod output;
+pub mod progress;
+pub mod report;
+pub mod scene;
+pub mod solve;
+pub mod texelize;
 pub mod unwrap;
+
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+
+use config::{BakeOptions, Config, EnvironmentOptions};
+use environment::{EnvironmentMap, LightSet};
+use gpu::Gpu;
+use progress::Progress;
+use report::{AtlasReport, EnvironmentReport, Report, SceneReport, StageTime, TexelReport};
+use scene::Scene;
+use solve::Solution;
+use texelize::TexelSet;
+use unwrap::Atlas;
+
+/// A scene baked in memory.
+pub struct Baked {
+    pub scene: Scene,
+    pub atlas: Atlas,
+    pub texels: TexelSet,
+    pub solution: Solution,
+    pub stages: Vec<StageTime>,
+    pub notices: Vec<String>,
+}
+
+/// Times `f` as stage `name` of `scene`, reporting to `progress`.
+fn stage<T>(
+    progress: &mut dyn Progress,
+    stages: &mut Vec<StageTime>,
+    scene: &str,
+    name: &str,
+    f: impl FnOnce(&mut dyn Progress) -> Result<(T, String)>,
+) -> Result<T> {
+    let start = Instant::now();
+    progress.stage(scene, name);
+    let (value, summary) = f(progress)?;
+    progress.finish(&summary);
+    stages.push(StageTime {
+        stage: name.to_string(),
+        seconds: start.elapsed().as_secs_f64(),
+    });
+    Ok(value)
+}
+
+/// Unwraps, texelizes and solves `scene` under `lights` (if any).
+pub fn bake_scene(
+    gpu: &Gpu,
+    scene: Scene,
+    lights: Option<&LightSet>,
+    options: &BakeOptions,
+    progress: &mut dyn Progress,
+) -> Result<Baked> {
+    let name = scene.name.clone();
+    let mut stages = Vec::new();
+    let mut notices = scene.notices.clone();
+    let atlas = stage(progress, &mut stages, &name, "unwrap", |_| {
+        let meshes: Vec<unwrap::MeshInput> = scene
+            .primitives
+            .iter()
+            .map(|p| unwrap::MeshInput {
+                positions: &p.positions,
+                indices: &p.indices,
+            })
+            .collect();
+        let atlas = unwrap::run(&meshes, &options.unwrap).context("unwrap")?;
+        let summary = format!(
+            "{}×{} atlas, {} charts, {:.0}% used, {:.3} texels/m",
+            atlas.width,
+            atlas.height,
+            atlas.chart_count,
+            atlas.utilization * 100.0,
+            atlas.texels_per_unit
+        );
+        Ok((atlas, summary))
+    })?;
+    for notice in &atlas.notices {
+        progress.notice(notice);
+    }
+    notices.extend(atlas.notices.iter().cloned());
+    let texels = stage(progress, &mut stages, &name, "texelize", |_| {
+        let texels = texelize::run(gpu, &scene, &atlas)?;
+        let summary = format!(
+            "{} texels covering {:.4} m²",
+            texels.texels.len(),
+            texels.total_area()
+        );
+        Ok((texels, summary))
+    })?;
+    let solution = stage(progress, &mut stages, &name, "solve", |progress| {
+        let solution = solve::run(
+            gpu,
+            &scene,
+            &texels,
+            lights,
+            atlas.texels_per_unit,
+            &options.solve,
+            &mut |d, t| progress.update(d, t),
+        )?;
+        let summary = match &solution.direct {
+            Some(d) => format!(
+                "{} lights × {} texels, shadow maps {}²",
+                d.lights,
+                texels.texels.len(),
+                d.shadow_map_size
+            ),
+            None => "nothing to solve".to_string(),
+        };
+        Ok((solution, summary))
+    })?;
+    Ok(Baked {
+        scene,
+        atlas,
+        texels,
+        solution,
+        stages,
+        notices,
+    })
+}
+
+/// Loads the environment and extracts its lights.
+pub fn load_environment(
+    path: &Path,
+    options: &EnvironmentOptions,
+) -> Result<(LightSet, EnvironmentReport)> {
+    let start = Instant::now();
+    let loaded = EnvironmentMap::load(
+        path,
+        &environment::EnvLoadOptions {
+            clamp_nonfinite: options.clamp_nonfinite,
+        },
+    )?;
+    let lights = LightSet::extract(
+        &loaded.map,
+        options.lights,
+        options.rotation_degrees,
+        options.intensity,
+    );
+    if lights.lights.is_empty() {
+        bail!(
+            "environment '{}': the map has no energy (every texel is black)",
+            path.display()
+        );
+    }
+    let report = EnvironmentReport {
+        path: path.to_path_buf(),
+        width: loaded.map.width,
+        height: loaded.map.height,
+        mode: options.lights.to_string(),
+        lights: lights.lights.len(),
+        dropped: lights.dropped,
+        map_integral: lights.map_integral,
+        captured: lights.captured,
+        rotation_degrees: options.rotation_degrees,
+        intensity: options.intensity,
+        seconds: start.elapsed().as_secs_f64(),
+        notices: loaded.notices,
+    };
+    Ok((lights, report))
+}
+
+/// The whole run: every input baked into a staging folder, then moved into
+/// `config.output` together with `report.json` only if everything succeeded.
+pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Report> {
+    let start = Instant::now();
+    let staging = output::Staging::new(&config.output, &config.inputs)?;
+
+    let environment = match &config.environment {
+        Some(path) => {
+            progress.stage("", "environment");
+            let (lights, report) = load_environment(path, &config.environment_options)?;
+            for notice in &report.notices {
+                progress.notice(notice);
+            }
+            progress.finish(&format!(
+                "{} lights from {}×{} map",
+                report.lights, report.width, report.height
+            ));
+            Some((lights, report))
+        }
+        None => None,
+    };
+
+    let mut scenes = Vec::new();
+    for input in &config.inputs {
+        let mut stages = Vec::new();
+        let scene = stage(progress, &mut stages, &input_stem(input), "import", |_| {
+            let scene = import::load(input)?;
+            let summary = format!(
+                "{} primitives, {} triangles",
+                scene.primitives.len(),
+                scene.triangle_count()
+            );
+            Ok((scene, summary))
+        })?;
+        for notice in &scene.notices {
+            progress.notice(notice);
+        }
+        if environment.is_none()
+            && !scene
+                .materials
+                .iter()
+                .any(|m| m.emission.iter().any(|&e| e > 0.0))
+        {
+            bail!(
+                "input '{}': nothing lights the scene: give --env or use emissive materials",
+                input.display()
+            );
+        }
+        let lights = environment.as_ref().map(|(lights, _)| lights);
+        let baked = bake_scene(gpu, scene, lights, &config.bake, progress)
+            .with_context(|| format!("input '{}'", input.display()))?;
+        stages.extend(baked.stages.iter().cloned());
+        let exported = stage(progress, &mut stages, &baked.scene.name, "export", |_| {
+            let stats = export::run(
+                &baked.scene,
+                &baked.atlas,
+                &baked.texels,
+                &baked.solution,
+                &config.bake.export,
+                staging.dir(),
+            )
+            .with_context(|| format!("input '{}': export", input.display()))?;
+            let summary = format!("{} files", stats.files.len());
+            Ok((stats, summary))
+        })?;
+        scenes.push(scene_report(
+            input,
+            &baked,
+            stages,
+            exported,
+            &config.bake,
+            &staging,
+        ));
+    }
+
+    let report = Report {
+        schema_version: report::SCHEMA_VERSION,
+        bake_version: env!("CARGO_PKG_VERSION").to_string(),
+        adapter: gpu.adapter.clone(),
+        environment: environment.map(|(_, report)| report),
+        scenes,
+        total_seconds: start.elapsed().as_secs_f64(),
+    };
+    let json = serde_json::to_vec_pretty(&report).context("serializing the report")?;
+    std::fs::write(staging.dir().join("report.json"), json).context("writing report.json")?;
+    staging.commit()?;
+    Ok(report)
+}
+
+fn input_stem(input: &Path) -> String {
+    input
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+fn scene_report(
+    input: &Path,
+    baked: &Baked,
+    stages: Vec<StageTime>,
+    exported: export::ExportStats,
+    options: &BakeOptions,
+    staging: &output::Staging,
+) -> SceneReport {
+    let scene = &baked.scene;
+    let keys: Vec<(usize, usize, usize)> = scene
+        .primitives
+        .iter()
+        .map(|p| (p.node, p.mesh, p.primitive))
+        .collect();
+    let names: Vec<String> = scene
+        .primitives
+        .iter()
+        .map(|p| {
+            let mesh = scene.source.document.meshes().nth(p.mesh);
+            let node = scene.source.document.nodes().nth(p.node);
+            let label = node
+                .and_then(|n| n.name().map(str::to_string))
+                .or_else(|| mesh.and_then(|m| m.name().map(str::to_string)));
+            format!(
+                "{}#{}",
+                label.unwrap_or_else(|| format!("node{}", p.node)),
+                p.primitive
+            )
+        })
+        .collect();
+    let mut notices = baked.notices.clone();
+    notices.extend(exported.notices.iter().cloned());
+    SceneReport {
+        input: input.to_path_buf(),
+        outputs: exported
+            .files
+            .iter()
+            .map(|f| staging.final_path(f))
+            .collect(),
+        stages,
+        skipped: baked.solution.skipped.clone(),
+        notices,
+        primitives: scene.primitives.len(),
+        triangles: scene.triangle_count(),
+        atlas: AtlasReport {
+            width: baked.atlas.width,
+            height: baked.atlas.height,
+            texels_per_unit: baked.atlas.texels_per_unit,
+            charts: baked.atlas.chart_count,
+            utilization: baked.atlas.utilization,
+            unwrapper: options.unwrap.backend.to_string(),
+        },
+        texels: TexelReport {
+            covered: baked.texels.texels.len(),
+            area: baked.texels.total_area(),
+            dilated: exported.dilated_texels,
+        },
+        direct: baked.solution.direct.clone(),
+        energy: report::primitive_energy(&baked.texels, &baked.solution, &keys, &names),
+    }
+}

@@ -1,0 +1,94 @@
+// Turns what texelize_raster left per texel (nearest triangle, clamped
+// barycentrics, covered area) into the radiosity element: world position,
+// normals, albedo, emission. One invocation per texel of a band of rows.
+
+struct AttributeParams {
+    width: u32,
+    height: u32,
+    first_row: u32,
+    rows: u32,
+}
+
+struct Vertex {
+    position: vec3f,
+    _pad0: f32,
+    normal: vec3f,   // zero when the primitive has no normals (flat shading)
+    _pad1: f32,
+    uv0: vec2f,
+    _pad2: vec2f,
+}
+
+struct Triangle {
+    corners: vec3<u32>,
+    material: u32,
+    face_normal: vec3f,  // from the winding, world space; zero if degenerate
+    _pad: u32,
+}
+
+struct Material {
+    base_color: vec4f,
+    emission: vec4f,
+}
+
+@group(0) @binding(0) var<uniform> params: AttributeParams;
+@group(0) @binding(1) var triangle_ids: texture_2d<u32>;
+@group(0) @binding(2) var barycentrics: texture_2d<f32>;
+@group(0) @binding(3) var areas: texture_2d<f32>;
+@group(0) @binding(4) var<storage, read> vertices: array<Vertex>;
+@group(0) @binding(5) var<storage, read> triangles: array<Triangle>;
+@group(0) @binding(6) var<storage, read> materials: array<Material>;
+// One entry per texel of the band, row-major.
+@group(0) @binding(7) var<storage, read_write> texels: array<Texel>;
+
+@compute @workgroup_size(8, 8)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (id.x >= params.width || id.y >= params.rows) {
+        return;
+    }
+    let x = id.x;
+    let y = id.y + params.first_row;
+    let slot = id.x + id.y * params.width;
+    var texel: Texel;
+    texel.index = x + y * params.width;
+    texel.triangle = NO_TRIANGLE;
+    let id_plus_one = textureLoad(triangle_ids, vec2<u32>(x, y), 0).x;
+    if (id_plus_one == 0u) {
+        texels[slot] = texel;
+        return;
+    }
+    let t = id_plus_one - 1u;
+    let tri = triangles[t];
+    let bc = textureLoad(barycentrics, vec2<u32>(x, y), 0).xy;
+    let w = vec3f(1.0 - bc.x - bc.y, bc.x, bc.y);
+    let va = vertices[tri.corners.x];
+    let vb = vertices[tri.corners.y];
+    let vc = vertices[tri.corners.z];
+
+    var normal = w.x * va.normal + w.y * vb.normal + w.z * vc.normal;
+    var face = tri.face_normal;
+    if (dot(normal, normal) < 1e-12) {
+        normal = face;
+    }
+    if (dot(normal, normal) < 1e-12) {
+        // Degenerate triangle without normals: any unit vector keeps the math finite.
+        normal = vec3f(0.0, 1.0, 0.0);
+    }
+    normal = normalize(normal);
+    // Shading normals decide which side receives; keep the geometric normal on that side.
+    if (dot(face, normal) < 0.0) {
+        face = -face;
+    }
+    if (dot(face, face) < 1e-12) {
+        face = normal;
+    }
+
+    let material = materials[tri.material];
+    texel.position = w.x * va.position + w.y * vb.position + w.z * vc.position;
+    texel.area = textureLoad(areas, vec2<u32>(x, y), 0).x;
+    texel.normal = normal;
+    texel.face_normal = face;
+    texel.triangle = t;
+    texel.albedo = material.base_color.rgb;
+    texel.emission = material.emission.rgb;
+    texels[slot] = texel;
+}

@@ -1,0 +1,283 @@
+//! Command-line arguments → a validated `Config`. Each option is defined
+//! once, here, with its help text and default; the tests at the bottom parse
+//! every one of them.
+
+use std::path::PathBuf;
+
+use anyhow::{Result, bail};
+use clap::{Parser, ValueEnum};
+
+use crate::config::{BakeOptions, Config, EnvironmentOptions};
+use crate::environment::LightMode;
+use crate::export::ExportOptions;
+use crate::progress::LogMode;
+use crate::solve::SolveOptions;
+use crate::unwrap::{Backend, UnwrapOptions};
+
+/// Bake diffuse global illumination from an HDR environment into glTF lightmaps.
+///
+/// Each input gets `OUT/<name>.glb` (TEXCOORD_1 plus the baked lighting, shown
+/// by any glTF viewer) and `OUT/<name>.lightmap0.exr` (the HDR lightmap,
+/// L_lm = E/π per texel); the run writes `OUT/report.json`. Outputs appear
+/// only when the whole run succeeds; inputs are never modified.
+///
+/// Exit codes: 0 success, 2 error (one line on stderr names the file and the problem).
+#[derive(Parser, Debug)]
+#[command(name = "bake", version, about, long_about)]
+pub struct Args {
+    /// glTF scenes to bake (.gltf or .glb)
+    #[arg(required = true, value_name = "INPUT")]
+    pub inputs: Vec<PathBuf>,
+
+    /// Equirectangular HDR environment lighting the scene (.exr or .hdr); +Y is up,
+    /// the map's centre column looks along +X
+    #[arg(long, value_name = "FILE")]
+    pub env: Option<PathBuf>,
+
+    /// Output folder (created if missing)
+    #[arg(short, long, value_name = "DIR", default_value = "baked")]
+    pub output: PathBuf,
+
+    /// Lightmap texel density in texels per metre [default: the highest that fits --max-atlas-size]
+    #[arg(long, value_name = "X")]
+    pub texels_per_unit: Option<f32>,
+
+    /// Largest lightmap width and height in texels; a density that does not fit is lowered, with a notice
+    #[arg(long, value_name = "N", default_value_t = 1024)]
+    pub max_atlas_size: u32,
+
+    /// Empty texels kept around each lightmap chart
+    #[arg(long, value_name = "N", default_value_t = 2)]
+    pub padding: u32,
+
+    /// UV unwrapper for the lightmap UVs
+    #[arg(long, value_name = "NAME", default_value_t = Backend::default())]
+    pub unwrapper: Backend,
+
+    /// How the environment becomes lights: `cube:N` takes every texel of an N×N cube map
+    /// (6·N² lights, the paper's scheme), a plain number K spends K lights where the energy is
+    #[arg(long, value_name = "MODE", default_value_t = LightMode::default())]
+    pub lights: LightMode,
+
+    /// Turn the environment about +Y by this many degrees
+    #[arg(
+        long,
+        value_name = "DEG",
+        default_value_t = 0.0,
+        allow_hyphen_values = true
+    )]
+    pub env_rotation: f32,
+
+    /// Scale the environment's radiance
+    #[arg(long, value_name = "X", default_value_t = 1.0)]
+    pub env_intensity: f32,
+
+    /// Replace NaN or infinite environment texels (with 0, or the largest finite value)
+    /// instead of refusing the map
+    #[arg(long)]
+    pub clamp_nonfinite: bool,
+
+    /// Shadow-map width and height in texels [default: from the scene's size and texel density]
+    #[arg(long, value_name = "N")]
+    pub shadow_map_size: Option<u32>,
+
+    /// Exposure in stops of the 8-bit preview texture viewers show (the EXR is not scaled)
+    #[arg(
+        long,
+        value_name = "EV",
+        default_value_t = 0.0,
+        allow_hyphen_values = true
+    )]
+    pub exposure: f32,
+
+    /// Use the GPU adapter whose name contains this text (e.g. "llvmpipe", "NVIDIA")
+    #[arg(long, value_name = "NAME")]
+    pub adapter: Option<String>,
+
+    /// Print nothing but errors
+    #[arg(short, long)]
+    pub quiet: bool,
+
+    /// Progress format when not quiet: bars on a terminal and text otherwise (auto), or one JSON object per line
+    #[arg(long, value_name = "FORMAT", default_value = "auto")]
+    pub log_format: LogFormat,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum LogFormat {
+    Auto,
+    Text,
+    Json,
+}
+
+impl Args {
+    /// Checks ranges and builds the run's configuration.
+    pub fn into_config(self) -> Result<Config> {
+        if let Some(t) = self.texels_per_unit
+            && !(t.is_finite() && t > 0.0)
+        {
+            bail!("--texels-per-unit must be a positive number, not {t}");
+        }
+        if !(16..=16384).contains(&self.max_atlas_size) {
+            bail!(
+                "--max-atlas-size must be between 16 and 16384, not {}",
+                self.max_atlas_size
+            );
+        }
+        if self.padding > 64 {
+            bail!("--padding must be at most 64 texels, not {}", self.padding);
+        }
+        if !(self.env_rotation.is_finite()) {
+            bail!("--env-rotation must be a finite angle");
+        }
+        if !(self.env_intensity.is_finite() && self.env_intensity >= 0.0) {
+            bail!(
+                "--env-intensity must be a finite number ≥ 0, not {}",
+                self.env_intensity
+            );
+        }
+        if let Some(size) = self.shadow_map_size
+            && !(16..=16384).contains(&size)
+        {
+            bail!("--shadow-map-size must be between 16 and 16384, not {size}");
+        }
+        if !self.exposure.is_finite() {
+            bail!("--exposure must be finite");
+        }
+        let log = match (self.quiet, self.log_format) {
+            (true, _) => LogMode::Quiet,
+            (false, LogFormat::Auto) => LogMode::Auto,
+            (false, LogFormat::Text) => LogMode::Text,
+            (false, LogFormat::Json) => LogMode::Json,
+        };
+        Ok(Config {
+            inputs: self.inputs,
+            environment: self.env,
+            environment_options: EnvironmentOptions {
+                lights: self.lights,
+                rotation_degrees: self.env_rotation,
+                intensity: self.env_intensity,
+                clamp_nonfinite: self.clamp_nonfinite,
+            },
+            output: self.output,
+            adapter: self.adapter,
+            bake: BakeOptions {
+                unwrap: UnwrapOptions {
+                    backend: self.unwrapper,
+                    texels_per_unit: self.texels_per_unit,
+                    max_atlas_size: self.max_atlas_size,
+                    padding: self.padding,
+                },
+                solve: SolveOptions {
+                    shadow_map_size: self.shadow_map_size,
+                    ..SolveOptions::default()
+                },
+                export: ExportOptions {
+                    exposure: self.exposure,
+                    ..ExportOptions::default()
+                },
+            },
+            log,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(args: &[&str]) -> Result<Config> {
+        let mut full = vec!["bake"];
+        full.extend_from_slice(args);
+        Args::try_parse_from(full)
+            .map_err(|e| anyhow::anyhow!("{e}"))?
+            .into_config()
+    }
+
+    #[test]
+    fn defaults() {
+        let config = parse(&["a.glb"]).unwrap();
+        assert_eq!(config.inputs, vec![PathBuf::from("a.glb")]);
+        assert_eq!(config.output, PathBuf::from("baked"));
+        assert_eq!(config.environment, None);
+        assert_eq!(config.bake.unwrap.max_atlas_size, 1024);
+        assert_eq!(config.bake.unwrap.padding, 2);
+        assert_eq!(config.bake.unwrap.texels_per_unit, None);
+        assert_eq!(config.environment_options.lights, LightMode::default());
+        assert_eq!(config.environment_options.intensity, 1.0);
+        assert_eq!(config.bake.export.exposure, 0.0);
+        assert_eq!(config.log, LogMode::Auto);
+    }
+
+    #[test]
+    fn every_option_parses() {
+        let config = parse(&[
+            "a.glb",
+            "b.gltf",
+            "--env",
+            "sky.exr",
+            "-o",
+            "out",
+            "--texels-per-unit",
+            "12.5",
+            "--max-atlas-size",
+            "512",
+            "--padding",
+            "3",
+            "--unwrapper",
+            "uvunwrap",
+            "--lights",
+            "cube:8",
+            "--env-rotation",
+            "-90",
+            "--env-intensity",
+            "2",
+            "--clamp-nonfinite",
+            "--shadow-map-size",
+            "256",
+            "--exposure",
+            "-1.5",
+            "--adapter",
+            "llvmpipe",
+            "--log-format",
+            "json",
+        ])
+        .unwrap();
+        assert_eq!(config.inputs.len(), 2);
+        assert_eq!(config.environment, Some(PathBuf::from("sky.exr")));
+        assert_eq!(config.output, PathBuf::from("out"));
+        assert_eq!(config.bake.unwrap.texels_per_unit, Some(12.5));
+        assert_eq!(config.bake.unwrap.max_atlas_size, 512);
+        assert_eq!(config.bake.unwrap.padding, 3);
+        assert_eq!(config.bake.unwrap.backend, Backend::Uvunwrap);
+        assert_eq!(
+            config.environment_options.lights,
+            LightMode::Cube { face_size: 8 }
+        );
+        assert_eq!(config.environment_options.rotation_degrees, -90.0);
+        assert_eq!(config.environment_options.intensity, 2.0);
+        assert!(config.environment_options.clamp_nonfinite);
+        assert_eq!(config.bake.solve.shadow_map_size, Some(256));
+        assert_eq!(config.bake.export.exposure, -1.5);
+        assert_eq!(config.adapter.as_deref(), Some("llvmpipe"));
+        assert_eq!(config.log, LogMode::Json);
+        assert_eq!(parse(&["a.glb", "-q"]).unwrap().log, LogMode::Quiet);
+    }
+
+    #[test]
+    fn out_of_range_values_are_refused() {
+        for bad in [
+            &["a.glb", "--texels-per-unit", "0"][..],
+            &["a.glb", "--texels-per-unit", "-3"],
+            &["a.glb", "--max-atlas-size", "8"],
+            &["a.glb", "--padding", "100"],
+            &["a.glb", "--env-intensity", "-1"],
+            &["a.glb", "--shadow-map-size", "4"],
+            &["a.glb", "--lights", "sphere:3"],
+            &["a.glb", "--unwrapper", "magic"],
+            &[],
+        ] {
+            assert!(parse(bad).is_err(), "{bad:?} was accepted");
+        }
+    }
+}

@@ -1,0 +1,58 @@
+//! A validated run configuration: one options struct per stage, each with
+//! documented defaults. The CLI (`cli.rs`) builds it; tests build it directly.
+
+use std::path::PathBuf;
+
+use crate::environment::LightMode;
+use crate::export::ExportOptions;
+use crate::progress::LogMode;
+use crate::solve::SolveOptions;
+use crate::unwrap::UnwrapOptions;
+
+/// How the environment map becomes lights.
+#[derive(Clone, Debug)]
+pub struct EnvironmentOptions {
+    /// Light extraction mode (`--lights`).
+    pub lights: LightMode,
+    /// Turn the map about +Y, degrees (`--env-rotation`).
+    pub rotation_degrees: f32,
+    /// Scale its radiance (`--env-intensity`).
+    pub intensity: f32,
+    /// Replace NaN/infinite texels instead of refusing the map (`--clamp-nonfinite`).
+    pub clamp_nonfinite: bool,
+}
+
+impl Default for EnvironmentOptions {
+    fn default() -> Self {
+        EnvironmentOptions {
+            lights: LightMode::default(),
+            rotation_degrees: 0.0,
+            intensity: 1.0,
+            clamp_nonfinite: false,
+        }
+    }
+}
+
+/// Options of the per-scene stages.
+#[derive(Clone, Debug, Default)]
+pub struct BakeOptions {
+    pub unwrap: UnwrapOptions,
+    pub solve: SolveOptions,
+    pub export: ExportOptions,
+}
+
+/// Everything one `bake` run needs.
+#[derive(Clone, Debug)]
+pub struct Config {
+    /// `.gltf` / `.glb` files; each gets its own outputs.
+    pub inputs: Vec<PathBuf>,
+    /// Equirectangular environment (EXR or Radiance .hdr); `None` bakes emitters only.
+    pub environment: Option<PathBuf>,
+    pub environment_options: EnvironmentOptions,
+    /// Output folder (created if missing; files in it are replaced only on success).
+    pub output: PathBuf,
+    /// Substring of the adapter name to use (`--adapter`).
+    pub adapter: Option<String>,
+    pub bake: BakeOptions,
+    pub log: LogMode,
+}

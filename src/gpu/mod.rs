@@ -1,0 +1,317 @@
+//! The GPU handle every stage receives: device, queue, the adapter that was
+//! chosen, the one list of shaders, and read-back.
+//!
+//! Stages never create a `Gpu`; `main` (or a test) makes one and passes it
+//! down, as wgpu's `hello_compute` example separates set-up from work.
+
+mod readback;
+mod shaders;
+
+pub use readback::read_buffer;
+pub use shaders::Shader;
+
+use std::sync::{Arc, Mutex};
+
+use anyhow::{Context, Result, bail};
+use serde::{Deserialize, Serialize};
+
+/// What the report and the terminal say about the adapter that ran the bake.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct AdapterDescription {
+    pub name: String,
+    /// "Vulkan", "Metal", "Dx12", ...
+    pub backend: String,
+    /// "DiscreteGpu", "IntegratedGpu", "Cpu", ...
+    pub device_type: String,
+    pub driver: String,
+}
+
+impl std::fmt::Display for AdapterDescription {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} ({}, {}", self.name, self.backend, self.device_type)?;
+        if !self.driver.is_empty() {
+            write!(f, ", {}", self.driver)?;
+        }
+        write!(f, ")")
+    }
+}
+
+/// Device, queue and adapter facts, shared by all stages.
+pub struct Gpu {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub adapter: AdapterDescription,
+    pub limits: wgpu::Limits,
+    /// Validation, out-of-memory and device-lost messages not yet reported.
+    errors: Arc<Mutex<Vec<String>>>,
+}
+
+/// Features every bake needs. FLOAT32_BLENDABLE: texelization sums each
+/// texel's exact covered area with additive blending into an R32Float target.
+const REQUIRED_FEATURES: wgpu::Features = wgpu::Features::FLOAT32_BLENDABLE;
+
+const NO_ADAPTER_HELP: &str = "no GPU adapter found: install a Vulkan driver; without a GPU, \
+     Mesa's CPU driver works: `sudo apt-get install mesa-vulkan-drivers libvulkan1`";
+
+impl Gpu {
+    /// Opens the best adapter, or the first whose name contains `wanted`
+    /// (case-insensitive). Prefers a discrete GPU, then integrated, then a
+    /// CPU driver such as Mesa's lavapipe.
+    pub fn new(wanted: Option<&str>) -> Result<Gpu> {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+            backends: wgpu::Backends::PRIMARY,
+            ..wgpu::InstanceDescriptor::new_without_display_handle()
+        });
+        let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::PRIMARY));
+        if adapters.is_empty() {
+            bail!(NO_ADAPTER_HELP);
+        }
+        let adapter = match wanted {
+            Some(wanted) => {
+                let needle = wanted.to_lowercase();
+                let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
+                adapters
+                    .into_iter()
+                    .find(|a| a.get_info().name.to_lowercase().contains(&needle))
+                    .with_context(|| {
+                        format!(
+                            "no adapter matches --adapter '{wanted}'; found: {}",
+                            names.join(", ")
+                        )
+                    })?
+            }
+            None => adapters
+                .into_iter()
+                .min_by_key(|a| preference_rank(a.get_info().device_type))
+                .context(NO_ADAPTER_HELP)?,
+        };
+        let info = adapter.get_info();
+        let description = AdapterDescription {
+            name: info.name.clone(),
+            backend: format!("{:?}", info.backend),
+            device_type: format!("{:?}", info.device_type),
+            driver: [info.driver.as_str(), info.driver_info.as_str()]
+                .iter()
+                .filter(|s| !s.is_empty())
+                .copied()
+                .collect::<Vec<_>>()
+                .join(" "),
+        };
+        let missing = REQUIRED_FEATURES - adapter.features();
+        if !missing.is_empty() {
+            bail!("adapter {description} lacks required features {missing:?}");
+        }
+        // Ask for the adapter's own limits: wgpu's defaults are far lower
+        // (e.g. 8192² textures, 128 MiB storage bindings are not guaranteed).
+        let limits = adapter.limits();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("bake"),
+            required_features: REQUIRED_FEATURES,
+            required_limits: limits.clone(),
+            ..Default::default()
+        }))
+        .with_context(|| format!("could not open adapter {description}"))?;
+
+        let errors = Arc::new(Mutex::new(Vec::new()));
+        let sink = errors.clone();
+        device.on_uncaptured_error(Arc::new(move |error: wgpu::Error| {
+            let message = match &error {
+                wgpu::Error::OutOfMemory { .. } => "GPU out of memory".to_string(),
+                other => format!("{other}"),
+            };
+            sink.lock().unwrap().push(message);
+        }));
+        let sink = errors.clone();
+        device.set_device_lost_callback(move |reason, message| {
+            if reason != wgpu::DeviceLostReason::Destroyed {
+                sink.lock()
+                    .unwrap()
+                    .push(format!("GPU device lost ({reason:?}): {message}"));
+            }
+        });
+        Ok(Gpu {
+            device,
+            queue,
+            adapter: description,
+            limits,
+            errors,
+        })
+    }
+
+    /// Waits for submitted work and turns any GPU error raised so far into an
+    /// error naming `stage`. Call at the end of each stage.
+    pub fn check(&self, stage: &str) -> Result<()> {
+        self.wait()?;
+        let errors = std::mem::take(&mut *self.errors.lock().unwrap());
+        match errors.first() {
+            None => Ok(()),
+            Some(first) => bail!(
+                "{stage}: GPU error on {}: {}{}",
+                self.adapter.name,
+                first.lines().next().unwrap_or(first),
+                if errors.len() > 1 {
+                    format!(" (and {} more)", errors.len() - 1)
+                } else {
+                    String::new()
+                }
+            ),
+        }
+    }
+
+    /// Blocks until all submitted work has finished.
+    pub fn wait(&self) -> Result<()> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
+            .map_err(|e| anyhow::anyhow!("GPU wait failed: {e}"))
+    }
+
+    /// Builds the named shader (with `common.wgsl` prepended).
+    pub fn shader(&self, shader: Shader) -> wgpu::ShaderModule {
+        self.device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(shader.stem()),
+                source: wgpu::ShaderSource::Wgsl(shader.source().into()),
+            })
+    }
+
+    /// A compute pipeline for `entry` of `shader`, labelled with the shader's stem.
+    pub fn compute_pipeline(
+        &self,
+        shader: Shader,
+        entry: &str,
+        layouts: &[&wgpu::BindGroupLayout],
+    ) -> wgpu::ComputePipeline {
+        let module = self.shader(shader);
+        let layouts: Vec<Option<&wgpu::BindGroupLayout>> =
+            layouts.iter().map(|l| Some(*l)).collect();
+        let layout = self
+            .device
+            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(shader.stem()),
+                bind_group_layouts: &layouts,
+                immediate_size: 0,
+            });
+        self.device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(shader.stem()),
+                layout: Some(&layout),
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+    }
+
+    /// A storage buffer initialised with `data` (at least 4 bytes, so empty
+    /// inputs still bind).
+    pub fn storage_buffer<T: bytemuck::Pod>(
+        &self,
+        label: &str,
+        data: &[T],
+        extra: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
+        use wgpu::util::DeviceExt;
+        let bytes: &[u8] = bytemuck::cast_slice(data);
+        let padded;
+        let contents = if bytes.len() < 16 {
+            padded = [bytes, &[0u8; 16][..16 - bytes.len()]].concat();
+            &padded[..]
+        } else {
+            bytes
+        };
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE | extra,
+            })
+    }
+
+    /// A uniform buffer holding one `T`.
+    pub fn uniform_buffer<T: bytemuck::Pod>(&self, label: &str, value: &T) -> wgpu::Buffer {
+        use wgpu::util::DeviceExt;
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytemuck::bytes_of(value),
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            })
+    }
+
+    /// Workgroup counts for `items` invocations of `size`, spread over x and y
+    /// so that no dimension exceeds the adapter's limit.
+    pub fn dispatch_size(&self, items: u32, size: u32) -> (u32, u32) {
+        let groups = items.div_ceil(size).max(1);
+        let max = self.limits.max_compute_workgroups_per_dimension.max(1);
+        if groups <= max {
+            (groups, 1)
+        } else {
+            (max, groups.div_ceil(max))
+        }
+    }
+}
+
+fn preference_rank(kind: wgpu::DeviceType) -> u8 {
+    match kind {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Cpu => 3,
+        wgpu::DeviceType::Other => 4,
+    }
+}
+
+/// A bind-group-layout entry for a storage buffer visible to `stages`.
+pub fn storage_entry(
+    binding: u32,
+    read_only: bool,
+    stages: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: stages,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// A bind-group-layout entry for a uniform buffer visible to `stages`.
+pub fn uniform_entry(binding: u32, stages: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: stages,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// Binds `buffers` in order to bindings 0, 1, 2, ...
+pub fn bind_buffers(
+    gpu: &Gpu,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    buffers: &[&wgpu::Buffer],
+) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry> = buffers
+        .iter()
+        .enumerate()
+        .map(|(i, b)| wgpu::BindGroupEntry {
+            binding: i as u32,
+            resource: b.as_entire_binding(),
+        })
+        .collect();
+    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout,
+        entries: &entries,
+    })
+}

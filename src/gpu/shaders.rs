@@ -1,0 +1,52 @@
+//! The one list of WGSL shaders. Only this file knows their paths; each is
+//! built into the binary and gets `shaders/common.wgsl` prepended (WGSL has
+//! no includes).
+
+/// Shared WGSL: constants, the light-space basis, packing helpers.
+pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
+
+/// Every pass's shader, named `<stage>_<pass>` after its file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Shader {
+    /// Rasterizes triangles in lightmap-UV space: nearest triangle per texel and exact covered area.
+    TexelizeRaster,
+    /// Turns (triangle, barycentrics) per texel into world position, normals, albedo, emission.
+    TexelizeAttributes,
+    /// Orthographic depth maps of the scene along each light direction.
+    SolveDepth,
+    /// Direct environment light: every texel gathers the lights of one batch.
+    SolveDirect,
+}
+
+impl Shader {
+    pub const ALL: &'static [Shader] = &[
+        Shader::TexelizeRaster,
+        Shader::TexelizeAttributes,
+        Shader::SolveDepth,
+        Shader::SolveDirect,
+    ];
+
+    /// The file stem, also used as the pipeline label.
+    pub fn stem(self) -> &'static str {
+        match self {
+            Shader::TexelizeRaster => "texelize_raster",
+            Shader::TexelizeAttributes => "texelize_attributes",
+            Shader::SolveDepth => "solve_depth",
+            Shader::SolveDirect => "solve_direct",
+        }
+    }
+
+    fn body(self) -> &'static str {
+        match self {
+            Shader::TexelizeRaster => include_str!("../../shaders/texelize_raster.wgsl"),
+            Shader::TexelizeAttributes => include_str!("../../shaders/texelize_attributes.wgsl"),
+            Shader::SolveDepth => include_str!("../../shaders/solve_depth.wgsl"),
+            Shader::SolveDirect => include_str!("../../shaders/solve_direct.wgsl"),
+        }
+    }
+
+    /// The complete WGSL source: common code, then the pass.
+    pub fn source(self) -> String {
+        format!("{COMMON}\n{}", self.body())
+    }
+}

@@ -1,0 +1,249 @@
+//! Import stage: a glTF file in, a `Scene` out: every static triangle
+//! primitive reachable from the default scene (or the first), node
+//! transforms applied, with its material. What cannot be baked (points,
+//! lines, skinned or morphing meshes) is left out with a notice, never
+//! silently.
+
+use std::path::Path;
+
+use anyhow::{Context, Result, anyhow, bail};
+use glam::{Mat3, Mat4, Vec3};
+use gltf::mesh::Mode;
+
+use crate::asset::{SourceAsset, accessor};
+use crate::scene::{Material, Scene, ScenePrimitive};
+
+/// Loads `path` (`.gltf` or `.glb`) into a `Scene`. Errors name the file.
+pub fn load(path: &Path) -> Result<Scene> {
+    let run = || -> Result<Scene> { from_asset(SourceAsset::load(path)?) };
+    run().with_context(|| format!("input '{}'", path.display()))
+}
+
+/// Builds a `Scene` from an already loaded asset.
+pub fn from_asset(source: SourceAsset) -> Result<Scene> {
+    let document = &source.document;
+    let gltf_scene = document
+        .default_scene()
+        .or_else(|| document.scenes().next())
+        .ok_or_else(|| anyhow!("the file has no scene to bake"))?;
+
+    let mut notices = Vec::new();
+    let mut primitives = Vec::new();
+    let mut stack: Vec<(gltf::Node, Mat4)> =
+        gltf_scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
+    stack.reverse();
+    let mut visits = 0usize;
+    while let Some((node, parent)) = stack.pop() {
+        visits += 1;
+        if visits > document.nodes().len() * 4 + 16 {
+            bail!("the node hierarchy has a cycle");
+        }
+        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        if let Some(mesh) = node.mesh() {
+            collect_mesh(&source, &node, &mesh, world, &mut primitives, &mut notices)?;
+        }
+        for child in node.children().collect::<Vec<_>>().into_iter().rev() {
+            stack.push((child, world));
+        }
+    }
+    if primitives.is_empty() {
+        bail!("the scene has no triangle geometry to bake");
+    }
+
+    let materials = document.materials().map(material).collect();
+    let lights = source
+        .json
+        .pointer("/extensions/KHR_lights_punctual/lights")
+        .and_then(|l| l.as_array());
+    if let Some(lights) = lights.filter(|l| !l.is_empty()) {
+        notices.push(format!(
+            "{} punctual light(s) (KHR_lights_punctual) are kept in the output but not baked: \
+             the environment and emissive surfaces light the bake",
+            lights.len()
+        ));
+    }
+    let name = source
+        .path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scene".into());
+    Ok(Scene {
+        name,
+        source,
+        primitives,
+        materials,
+        notices,
+    })
+}
+
+fn describe(node: &gltf::Node, mesh: &gltf::Mesh) -> String {
+    let node_name = node.name().map(|n| format!(" '{n}'")).unwrap_or_default();
+    let mesh_name = mesh.name().map(|n| format!(" '{n}'")).unwrap_or_default();
+    format!(
+        "mesh {}{mesh_name} on node {}{node_name}",
+        mesh.index(),
+        node.index()
+    )
+}
+
+fn collect_mesh(
+    source: &SourceAsset,
+    node: &gltf::Node,
+    mesh: &gltf::Mesh,
+    world: Mat4,
+    primitives: &mut Vec<ScenePrimitive>,
+    notices: &mut Vec<String>,
+) -> Result<()> {
+    let what = describe(node, mesh);
+    if node.skin().is_some() {
+        notices.push(format!(
+            "{what} is skinned (not static): left out of the bake"
+        ));
+        return Ok(());
+    }
+    let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
+    let mirrored = Mat3::from_mat4(world).determinant() < 0.0;
+    for primitive in mesh.primitives() {
+        let what = format!("{what}, primitive {}", primitive.index());
+        if primitive.morph_targets().len() > 0 {
+            notices.push(format!(
+                "{what} has morph targets (not static): left out of the bake"
+            ));
+            continue;
+        }
+        let mode = primitive.mode();
+        if !matches!(
+            mode,
+            Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+        ) {
+            notices.push(format!(
+                "{what} draws {mode:?}, not triangles: left out of the bake"
+            ));
+            continue;
+        }
+        let Some(position_accessor) = primitive.get(&gltf::Semantic::Positions) else {
+            notices.push(format!(
+                "{what} has no POSITION attribute: left out of the bake"
+            ));
+            continue;
+        };
+        let read = || -> Result<ScenePrimitive> {
+            let local = accessor::read_vectors::<3>(source, &position_accessor)?;
+            if let Some(i) = local.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
+                bail!("POSITION {i} is not finite ({:?})", local[i]);
+            }
+            let count = local.len();
+            let positions: Vec<[f32; 3]> = local
+                .iter()
+                .map(|&p| world.transform_point3(Vec3::from(p)).to_array())
+                .collect();
+            if let Some(i) = positions
+                .iter()
+                .position(|p| p.iter().any(|c| !c.is_finite()))
+            {
+                bail!("world position of vertex {i} is not finite: the node transform overflows");
+            }
+            let normals = match primitive.get(&gltf::Semantic::Normals) {
+                Some(a) => {
+                    let local = accessor::read_vectors::<3>(source, &a)?;
+                    if local.len() != count {
+                        bail!("NORMAL has {} entries for {count} positions", local.len());
+                    }
+                    Some(
+                        local
+                            .iter()
+                            .map(|&n| {
+                                let n = normal_matrix * Vec3::from(n);
+                                // Zero, NaN or infinite normals fall back to the face normal later.
+                                n.try_normalize().unwrap_or(Vec3::ZERO).to_array()
+                            })
+                            .collect(),
+                    )
+                }
+                None => None,
+            };
+            let uv0 = match primitive.get(&gltf::Semantic::TexCoords(0)) {
+                Some(a) => {
+                    let uv = accessor::read_vectors::<2>(source, &a)?;
+                    if uv.len() != count {
+                        bail!("TEXCOORD_0 has {} entries for {count} positions", uv.len());
+                    }
+                    Some(uv)
+                }
+                None => None,
+            };
+            let drawn = match primitive.indices() {
+                Some(a) => accessor::read_indices(source, &a)?,
+                None => (0..count as u32).collect(),
+            };
+            if let Some(&bad) = drawn.iter().find(|&&i| i as usize >= count) {
+                bail!("index {bad} is past the vertex count {count}");
+            }
+            let indices = triangle_list(mode, &drawn);
+            Ok(ScenePrimitive {
+                node: node.index(),
+                mesh: mesh.index(),
+                primitive: primitive.index(),
+                positions,
+                normals,
+                uv0,
+                indices,
+                mirrored,
+                material: primitive.material().index(),
+            })
+        };
+        let scene_primitive = read().with_context(|| what.clone())?;
+        if scene_primitive.indices.is_empty() {
+            notices.push(format!("{what} has no triangles: left out of the bake"));
+            continue;
+        }
+        primitives.push(scene_primitive);
+    }
+    Ok(())
+}
+
+/// Strips and fans as a plain triangle list, keeping each triangle's facing.
+fn triangle_list(mode: Mode, drawn: &[u32]) -> Vec<u32> {
+    match mode {
+        // glTF spec: strip triangle i is (i, i+1+i%2, i+2-i%2); fan triangle i is (i+1, i+2, 0).
+        Mode::TriangleStrip => (0..drawn.len().saturating_sub(2))
+            .flat_map(|i| [drawn[i], drawn[i + 1 + i % 2], drawn[i + 2 - i % 2]])
+            .collect(),
+        Mode::TriangleFan => (0..drawn.len().saturating_sub(2))
+            .flat_map(|i| [drawn[i + 1], drawn[i + 2], drawn[0]])
+            .collect(),
+        _ => drawn[..drawn.len() - drawn.len() % 3].to_vec(),
+    }
+}
+
+fn material(m: gltf::Material) -> Material {
+    let strength = m.emissive_strength().unwrap_or(1.0);
+    Material {
+        name: m.name().map(str::to_string),
+        base_color: m.pbr_metallic_roughness().base_color_factor(),
+        emission: m.emissive_factor().map(|e| e * strength),
+        double_sided: m.double_sided(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn strips_alternate_winding() {
+        assert_eq!(
+            triangle_list(Mode::TriangleStrip, &[0, 1, 2, 3]),
+            vec![0, 1, 2, 1, 3, 2]
+        );
+    }
+
+    #[test]
+    fn fans_share_the_first_vertex() {
+        // glTF spec: fan triangle i is (i+1, i+2, 0).
+        assert_eq!(
+            triangle_list(Mode::TriangleFan, &[0, 1, 2, 3]),
+            vec![1, 2, 0, 2, 3, 0]
+        );
+    }
+}

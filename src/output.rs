@@ -1,0 +1,116 @@
+//! Atomic outputs: a run writes everything into a staging folder and moves
+//! the files into the output folder only when the whole run succeeded, each
+//! by a rename. A failed run leaves the output folder as it was (and does
+//! not create it); inputs are never written.
+
+use std::collections::HashSet;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+
+/// A staging folder for one run's outputs.
+pub struct Staging {
+    dir: PathBuf,
+    output: PathBuf,
+    committed: bool,
+}
+
+impl Staging {
+    /// Checks that the inputs' outputs cannot collide with each other or
+    /// overwrite an input, and makes the staging folder.
+    pub fn new(output: &Path, inputs: &[PathBuf]) -> Result<Staging> {
+        let mut names = HashSet::new();
+        for input in inputs {
+            let stem = input
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            if !names.insert(stem.clone()) {
+                bail!(
+                    "two inputs are named '{stem}': their outputs would overwrite each other; bake them into different folders"
+                );
+            }
+            for produced in [format!("{stem}.glb"), format!("{stem}.lightmap0.exr")] {
+                let target = output.join(&produced);
+                if same_file(&target, input) {
+                    bail!(
+                        "input '{}': the output '{}' would replace it; choose another -o folder",
+                        input.display(),
+                        target.display()
+                    );
+                }
+            }
+        }
+        if output.exists() && !output.is_dir() {
+            bail!("output '{}' exists and is not a folder", output.display());
+        }
+        let unique = format!(".bake-staging-{}", std::process::id());
+        let dir = if output.is_dir() {
+            output.join(unique)
+        } else {
+            match output
+                .parent()
+                .filter(|p| p.as_os_str().is_empty() || p.is_dir())
+            {
+                Some(parent) => parent.join(unique),
+                None => std::env::temp_dir().join(unique),
+            }
+        };
+        std::fs::create_dir_all(&dir)
+            .with_context(|| format!("cannot create staging folder '{}'", dir.display()))?;
+        Ok(Staging {
+            dir,
+            output: output.to_path_buf(),
+            committed: false,
+        })
+    }
+
+    /// Where stages write their files.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Where a staged file ends up after `commit`.
+    pub fn final_path(&self, staged: &Path) -> PathBuf {
+        self.output.join(staged.file_name().unwrap_or_default())
+    }
+
+    /// Moves every staged file into the output folder (replacing older ones).
+    pub fn commit(mut self) -> Result<()> {
+        std::fs::create_dir_all(&self.output)
+            .with_context(|| format!("cannot create output folder '{}'", self.output.display()))?;
+        let mut entries: Vec<PathBuf> = std::fs::read_dir(&self.dir)?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .collect();
+        entries.sort();
+        for staged in entries {
+            let target = self.final_path(&staged);
+            if std::fs::rename(&staged, &target).is_err() {
+                // A different filesystem: copy beside the target, then rename there.
+                let partial = target.with_extension("partial");
+                std::fs::copy(&staged, &partial)
+                    .with_context(|| format!("writing '{}'", partial.display()))?;
+                std::fs::rename(&partial, &target)
+                    .with_context(|| format!("writing '{}'", target.display()))?;
+            }
+        }
+        self.committed = true;
+        let _ = std::fs::remove_dir_all(&self.dir);
+        Ok(())
+    }
+}
+
+impl Drop for Staging {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_dir_all(&self.dir);
+        }
+    }
+}
+
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    }
+}

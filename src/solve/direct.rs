@@ -1,0 +1,377 @@
+//! Direct environment light (design notes, algorithm step 3; the seed's
+//! section 3, after Coombe et al. 2004): for each batch of distant lights,
+//! render an orthographic depth map of the scene along −ω per light
+//! (`solve_depth.wgsl`), then let every texel gather
+//! ΔE = L_k Ω_k max(0, n·ω_k) V_k(p) (`solve_direct.wgsl`).
+//!
+//! Shadow-map bias is scaled by the shadow map's texel size in world units,
+//! so it is the same fraction of the scene at 1 mm and at 10 km.
+
+use std::time::Instant;
+
+use anyhow::Result;
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+use super::SolveOptions;
+use crate::environment::LightSet;
+use crate::gpu::{self, Gpu, Shader, read_buffer};
+use crate::scene::Scene;
+use crate::texelize::TexelSet;
+
+/// Lights per batch the uniform array holds (`MAX_BATCH` in common.wgsl).
+const MAX_BATCH: u32 = 256;
+/// Memory the shadow-map array of one batch may take.
+const DEPTH_BUDGET_BYTES: u64 = 128 << 20;
+
+/// Bias terms in shadow-map texels (world size 2R/S).
+const NORMAL_OFFSET_TEXELS: f32 = 1.0;
+const CONSTANT_BIAS_TEXELS: f32 = 0.5;
+const SLOPE_BIAS_TEXELS: f32 = 1.0;
+const MAX_SLOPE: f32 = 10.0;
+
+/// What the direct pass did, for the report.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct DirectStats {
+    pub lights: usize,
+    pub batches: usize,
+    pub shadow_map_size: u32,
+    /// Texel-light pairs evaluated.
+    pub evaluations: u64,
+    pub seconds: f64,
+}
+
+/// Mirrors `DirectParams` in common.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct DirectParams {
+    centre: [f32; 3],
+    radius: f32,
+    map_size: f32,
+    light_count: u32,
+    texel_count: u32,
+    row_stride: u32,
+    tiles_per_row: u32,
+    normal_offset: f32,
+    constant_bias: f32,
+    slope_bias: f32,
+    max_slope: f32,
+    _pad: [u32; 3],
+}
+
+/// Mirrors `DirectLight` in common.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable, Default)]
+struct DirectLight {
+    direction: [f32; 4],
+    power: [f32; 4],
+}
+
+/// The scene's bounding sphere (centre, radius with a margin so that
+/// geometry never touches the near or far plane).
+fn bounding_sphere(scene: &Scene) -> (Vec3, f32) {
+    let (lo, hi) = scene.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
+    let centre = (lo + hi) * 0.5;
+    let radius = scene
+        .primitives
+        .iter()
+        .flat_map(|p| p.positions.iter())
+        .map(|&p| (Vec3::from(p) - centre).length())
+        .fold(0.0f32, f32::max);
+    (centre, (radius * 1.02).max(f32::MIN_POSITIVE * 1e6))
+}
+
+/// Shadow maps resolve about two texels per lightmap texel across the scene.
+fn auto_shadow_map_size(radius: f32, texels_per_unit: f32, max_dimension: u32) -> u32 {
+    let wanted = (4.0 * radius * texels_per_unit).ceil().max(1.0) as u32;
+    wanted
+        .next_power_of_two()
+        .clamp(512, 2048)
+        .min(max_dimension)
+}
+
+/// Returns the irradiance E (rgb) gathered by every texel, in `TexelSet` order.
+pub fn run(
+    gpu: &Gpu,
+    scene: &Scene,
+    texels: &TexelSet,
+    lights: &LightSet,
+    texels_per_unit: f32,
+    options: &SolveOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<(Vec<[f32; 3]>, DirectStats)> {
+    let start = Instant::now();
+    let (centre, radius) = bounding_sphere(scene);
+    let size = options
+        .shadow_map_size
+        .unwrap_or_else(|| {
+            auto_shadow_map_size(radius, texels_per_unit, gpu.limits.max_texture_dimension_2d)
+        })
+        .min(gpu.limits.max_texture_dimension_2d);
+    let per_map = size as u64 * size as u64 * 4;
+    let batch = (DEPTH_BUDGET_BYTES / per_map)
+        .clamp(1, MAX_BATCH as u64)
+        .min(options.batch_size.clamp(1, MAX_BATCH) as u64)
+        .min(gpu.limits.max_texture_array_layers as u64) as u32;
+    let tiles_per_row_value = (batch as f64).sqrt().ceil() as u32;
+    let texel_world = 2.0 * radius / size as f32;
+    let texel_count = texels.texels.len() as u32;
+    let (groups_x, groups_y) = gpu.dispatch_size(texel_count, 64);
+    let mut params = DirectParams {
+        centre: centre.to_array(),
+        radius,
+        map_size: size as f32,
+        light_count: 0,
+        texel_count,
+        row_stride: groups_x * 64,
+        tiles_per_row: tiles_per_row_value,
+        normal_offset: NORMAL_OFFSET_TEXELS * texel_world,
+        constant_bias: CONSTANT_BIAS_TEXELS * texel_world,
+        slope_bias: SLOPE_BIAS_TEXELS * texel_world,
+        max_slope: MAX_SLOPE,
+        _pad: [0; 3],
+    };
+
+    // Shadow casters: every triangle, both sides (a one-sided plane still blocks light).
+    let mut positions: Vec<[f32; 3]> = Vec::new();
+    let mut indices: Vec<u32> = Vec::new();
+    for primitive in &scene.primitives {
+        let base = positions.len() as u32;
+        positions.extend_from_slice(&primitive.positions);
+        indices.extend(primitive.indices.iter().map(|i| i + base));
+    }
+    let vertex_buffer = gpu.storage_buffer(
+        "solve_depth positions",
+        &positions,
+        wgpu::BufferUsages::VERTEX,
+    );
+    let index_buffer =
+        gpu.storage_buffer("solve_depth indices", &indices, wgpu::BufferUsages::INDEX);
+
+    let params_buffer = gpu.uniform_buffer("solve_direct params", &params);
+    let lights_buffer = gpu.uniform_buffer(
+        "solve_direct lights",
+        &[DirectLight::default(); MAX_BATCH as usize],
+    );
+    let texel_buffer = gpu.storage_buffer(
+        "solve_direct texels",
+        &texels.texels,
+        wgpu::BufferUsages::empty(),
+    );
+    let irradiance = gpu.storage_buffer(
+        "solve_direct irradiance",
+        &vec![[0.0f32; 4]; texels.texels.len()],
+        wgpu::BufferUsages::COPY_SRC,
+    );
+    let tiles_per_row = (batch as f64).sqrt().ceil() as u32;
+    let tile_rows = batch.div_ceil(tiles_per_row);
+    let depth = gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("solve_depth maps"),
+        size: wgpu::Extent3d {
+            width: size * tiles_per_row,
+            height: size * tile_rows,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Depth32Float,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        view_formats: &[],
+    });
+    let array_view = depth.create_view(&Default::default());
+
+    let both = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::COMPUTE;
+    let depth_layout = gpu
+        .device
+        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("solve_depth"),
+            entries: &[
+                // 0: DirectParams (scene sphere, shadow-map size)
+                gpu::uniform_entry(0, both),
+                // 1: the batch's lights
+                gpu::uniform_entry(1, both),
+            ],
+        });
+    let depth_group = gpu::bind_buffers(
+        gpu,
+        "solve_depth",
+        &depth_layout,
+        &[&params_buffer, &lights_buffer],
+    );
+    let depth_pipeline = depth_pipeline(gpu, &depth_layout);
+
+    let compute = wgpu::ShaderStages::COMPUTE;
+    let gather_layout = gpu
+        .device
+        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("solve_direct"),
+            entries: &[
+                // 0: DirectParams, 1: the batch's lights
+                gpu::uniform_entry(0, both),
+                gpu::uniform_entry(1, both),
+                // 2: texels (read), 3: irradiance (accumulated)
+                gpu::storage_entry(2, true, compute),
+                gpu::storage_entry(3, false, compute),
+                // 4: the batch's depth maps
+                wgpu::BindGroupLayoutEntry {
+                    binding: 4,
+                    visibility: compute,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Depth,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+            ],
+        });
+    let gather_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("solve_direct"),
+        layout: &gather_layout,
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: params_buffer.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: lights_buffer.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: texel_buffer.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 3,
+                resource: irradiance.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 4,
+                resource: wgpu::BindingResource::TextureView(&array_view),
+            },
+        ],
+    });
+    let gather_pipeline = gpu.compute_pipeline(Shader::SolveDirect, "main", &[&gather_layout]);
+
+    let total = lights.lights.len() as u64;
+    let mut batches = 0;
+    for (chunk_index, chunk) in lights.lights.chunks(batch as usize).enumerate() {
+        let mut slots = [DirectLight::default(); MAX_BATCH as usize];
+        for (slot, light) in slots.iter_mut().zip(chunk) {
+            let [r, g, b] = light.radiance;
+            let omega = light.solid_angle;
+            slot.direction = [
+                light.direction[0],
+                light.direction[1],
+                light.direction[2],
+                0.0,
+            ];
+            slot.power = [r * omega, g * omega, b * omega, 0.0];
+        }
+        params.light_count = chunk.len() as u32;
+        gpu.queue
+            .write_buffer(&params_buffer, 0, bytemuck::bytes_of(&params));
+        gpu.queue
+            .write_buffer(&lights_buffer, 0, bytemuck::cast_slice(&slots));
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("solve_depth"),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &array_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&depth_pipeline);
+            pass.set_bind_group(0, &depth_group, &[]);
+            pass.set_vertex_buffer(0, vertex_buffer.slice(..));
+            pass.set_index_buffer(index_buffer.slice(..), wgpu::IndexFormat::Uint32);
+            for slot in 0..chunk.len() as u32 {
+                let (tx, ty) = (slot % tiles_per_row, slot / tiles_per_row);
+                pass.set_viewport(
+                    (tx * size) as f32,
+                    (ty * size) as f32,
+                    size as f32,
+                    size as f32,
+                    0.0,
+                    1.0,
+                );
+                pass.draw_indexed(0..indices.len() as u32, 0, slot..slot + 1);
+            }
+        }
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&gather_pipeline);
+            pass.set_bind_group(0, &gather_group, &[]);
+            pass.dispatch_workgroups(groups_x, groups_y, 1);
+        }
+        gpu.queue.submit([encoder.finish()]);
+        gpu.wait()?;
+        batches += 1;
+        progress((chunk_index * batch as usize + chunk.len()) as u64, total);
+    }
+    let sums: Vec<[f32; 4]> = read_buffer(gpu, &irradiance, texels.texels.len())?;
+    gpu.check("solve (direct)")?;
+    let stats = DirectStats {
+        lights: lights.lights.len(),
+        batches,
+        shadow_map_size: size,
+        evaluations: total * texel_count as u64,
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    Ok((
+        sums.into_iter().map(|e| [e[0], e[1], e[2]]).collect(),
+        stats,
+    ))
+}
+
+fn depth_pipeline(gpu: &Gpu, layout: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
+    let module = gpu.shader(Shader::SolveDepth);
+    let pipeline_layout = gpu
+        .device
+        .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("solve_depth"),
+            bind_group_layouts: &[Some(layout)],
+            immediate_size: 0,
+        });
+    gpu.device
+        .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("solve_depth"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_depth"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: 12,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &wgpu::vertex_attr_array![0 => Float32x3],
+                })],
+            },
+            primitive: wgpu::PrimitiveState {
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: wgpu::TextureFormat::Depth32Float,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: None,
+            multiview_mask: None,
+            cache: None,
+        })
+}

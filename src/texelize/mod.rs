@@ -1,0 +1,218 @@
+//! Texelize stage: Scene + Atlas in, `TexelSet` out. Every lightmap texel a
+//! triangle touches becomes a radiosity element with world position, normal,
+//! world area, albedo and emission (design notes, algorithm step 1).
+//!
+//! The GPU rasterizes each triangle into the atlas in TEXCOORD_1 space
+//! (`raster.rs`); texels at chart borders whose centre lies outside every
+//! triangle still get the data of the nearest point of the nearest triangle.
+
+mod raster;
+
+use anyhow::{Result, bail};
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+
+use crate::gpu::Gpu;
+use crate::scene::Scene;
+use crate::unwrap::Atlas;
+
+/// One covered texel. Mirrors `struct Texel` in `shaders/common.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct Texel {
+    /// World position (metres): the texel centre's nearest point on its triangle.
+    pub position: [f32; 3],
+    /// World area (m²) of the surface inside the texel's square; zero for
+    /// texels that only border a chart.
+    pub area: f32,
+    /// Unit shading normal.
+    pub normal: [f32; 3],
+    /// x + y · atlas width.
+    pub index: u32,
+    /// Unit geometric normal of the texel's triangle, on the shading normal's side.
+    pub face_normal: [f32; 3],
+    /// Global triangle id (primitives in scene order, triangles in order).
+    pub triangle: u32,
+    /// Diffuse albedo, linear RGB.
+    pub albedo: [f32; 3],
+    /// Global chart id from the unwrap.
+    pub chart: u32,
+    /// Emitted radiance, linear RGB.
+    pub emission: [f32; 3],
+    /// Index into `Scene::primitives`.
+    pub primitive: u32,
+}
+
+impl Texel {
+    pub fn position(&self) -> Vec3 {
+        Vec3::from(self.position)
+    }
+    pub fn normal(&self) -> Vec3 {
+        Vec3::from(self.normal)
+    }
+    pub fn x(&self, width: u32) -> u32 {
+        self.index % width
+    }
+    pub fn y(&self, width: u32) -> u32 {
+        self.index / width
+    }
+}
+
+/// The radiosity elements of one atlas page.
+#[derive(Clone, Debug)]
+pub struct TexelSet {
+    pub width: u32,
+    pub height: u32,
+    /// Covered texels in row-major atlas order.
+    pub texels: Vec<Texel>,
+}
+
+impl TexelSet {
+    /// Total world area covered by texels (m²): equals the baked surface area.
+    pub fn total_area(&self) -> f64 {
+        self.texels.iter().map(|t| t.area as f64).sum()
+    }
+}
+
+/// Per-vertex data the GPU interpolates. Mirrors `struct Vertex` in texelize_attributes.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+struct GpuVertex {
+    position: [f32; 3],
+    _pad0: f32,
+    normal: [f32; 3],
+    _pad1: f32,
+    uv0: [f32; 2],
+    _pad2: [f32; 2],
+}
+
+/// Mirrors `struct Triangle` in texelize_attributes.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+struct GpuTriangle {
+    corners: [u32; 3],
+    material: u32,
+    face_normal: [f32; 3],
+    _pad: u32,
+}
+
+/// Mirrors `struct Material` in texelize_attributes.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+struct GpuMaterial {
+    base_color: [f32; 4],
+    emission: [f32; 4],
+}
+
+/// The whole scene flattened for the GPU, with per-triangle facts the CPU keeps.
+struct Mesh {
+    vertices: Vec<GpuVertex>,
+    triangles: Vec<GpuTriangle>,
+    /// Three corners per triangle in texel units.
+    corners: Vec<[f32; 2]>,
+    /// World area per texel² of UV area, per triangle.
+    area_ratio: Vec<f32>,
+    materials: Vec<GpuMaterial>,
+    triangle_primitive: Vec<u32>,
+    triangle_chart: Vec<u32>,
+}
+
+fn flatten(scene: &Scene, atlas: &Atlas) -> Mesh {
+    let size = [atlas.width as f32, atlas.height as f32];
+    let mut mesh = Mesh {
+        vertices: Vec::new(),
+        triangles: Vec::new(),
+        corners: Vec::new(),
+        area_ratio: Vec::new(),
+        materials: scene
+            .materials
+            .iter()
+            .chain(std::iter::once(&crate::scene::Material::default()))
+            .map(|m| GpuMaterial {
+                base_color: m.base_color,
+                emission: [m.emission[0], m.emission[1], m.emission[2], 0.0],
+            })
+            .collect(),
+        triangle_primitive: Vec::new(),
+        triangle_chart: Vec::new(),
+    };
+    let default_material = scene.materials.len() as u32;
+    for (p, (primitive, unwrapped)) in scene.primitives.iter().zip(&atlas.meshes).enumerate() {
+        let base = mesh.vertices.len() as u32;
+        for v in &unwrapped.vertices {
+            let source = v.xref as usize;
+            mesh.vertices.push(GpuVertex {
+                position: primitive.positions[source],
+                normal: primitive.normals.as_ref().map_or([0.0; 3], |n| n[source]),
+                uv0: primitive.uv0.as_ref().map_or([0.0; 2], |uv| uv[source]),
+                ..Default::default()
+            });
+        }
+        let material = primitive.material.map_or(default_material, |m| m as u32);
+        for (t, corner) in unwrapped.indices.chunks_exact(3).enumerate() {
+            let face_normal = primitive.face_normal(t);
+            let [a, b, c] = [0, 1, 2].map(|k| {
+                Vec3::from(
+                    primitive.positions[unwrapped.vertices[corner[k] as usize].xref as usize],
+                )
+            });
+            let world_area = 0.5 * (b - a).cross(c - a).length();
+            let uv = [0, 1, 2].map(|k| {
+                let v = unwrapped.vertices[corner[k] as usize].uv;
+                [v[0] * size[0], v[1] * size[1]]
+            });
+            let uv_area = 0.5
+                * ((uv[1][0] - uv[0][0]) * (uv[2][1] - uv[0][1])
+                    - (uv[2][0] - uv[0][0]) * (uv[1][1] - uv[0][1]))
+                    .abs();
+            mesh.corners.extend_from_slice(&uv);
+            mesh.area_ratio.push(if uv_area > 1e-12 {
+                world_area / uv_area
+            } else {
+                0.0
+            });
+            mesh.triangles.push(GpuTriangle {
+                corners: [base + corner[0], base + corner[1], base + corner[2]],
+                material,
+                face_normal: face_normal.to_array(),
+                _pad: 0,
+            });
+            mesh.triangle_primitive.push(p as u32);
+            mesh.triangle_chart
+                .push(unwrapped.vertices[corner[0] as usize].chart);
+        }
+    }
+    mesh
+}
+
+/// Rasterizes the scene's triangles into the atlas and returns every texel they touch.
+pub fn run(gpu: &Gpu, scene: &Scene, atlas: &Atlas) -> Result<TexelSet> {
+    if atlas.meshes.len() != scene.primitives.len() {
+        bail!(
+            "texelize: the atlas has {} meshes for {} primitives",
+            atlas.meshes.len(),
+            scene.primitives.len()
+        );
+    }
+    let max = gpu.limits.max_texture_dimension_2d;
+    if atlas.width > max || atlas.height > max {
+        bail!(
+            "texelize: the atlas is {}×{} texels but adapter {} allows at most {max}²; lower --max-atlas-size",
+            atlas.width,
+            atlas.height,
+            gpu.adapter.name
+        );
+    }
+    let mesh = flatten(scene, atlas);
+    let mut texels = raster::texelize(gpu, &mesh, atlas.width, atlas.height)?;
+    for texel in &mut texels {
+        texel.primitive = mesh.triangle_primitive[texel.triangle as usize];
+        texel.chart = mesh.triangle_chart[texel.triangle as usize];
+    }
+    gpu.check("texelize")?;
+    Ok(TexelSet {
+        width: atlas.width,
+        height: atlas.height,
+        texels,
+    })
+}

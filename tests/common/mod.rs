@@ -1,0 +1,82 @@
+//! Helpers shared by the integration tests: a GPU (a missing adapter fails
+//! the test, it never skips), in-memory bakes of fixture scenes, and checks
+//! every bake must pass.
+#![allow(dead_code)]
+
+use std::path::Path;
+
+use bake::Baked;
+use bake::config::BakeOptions;
+use bake::environment::{EnvironmentMap, LightMode, LightSet};
+use bake::fixtures::SceneBuilder;
+use bake::gpu::Gpu;
+use bake::progress::Silent;
+
+/// The adapter wgpu picks (lavapipe in CI). Prints its name so a log says what ran.
+pub fn gpu() -> Gpu {
+    let gpu = Gpu::new(None).expect("no GPU adapter: install mesa-vulkan-drivers and libvulkan1");
+    eprintln!("adapter: {}", gpu.adapter);
+    gpu
+}
+
+/// Imports a fixture scene from its in-memory GLB.
+pub fn scene(builder: &SceneBuilder, name: &str) -> bake::scene::Scene {
+    let glb = builder.to_glb();
+    let source =
+        bake::asset::SourceAsset::from_bytes(Path::new(&format!("{name}.glb")), &glb, None)
+            .unwrap();
+    bake::import::from_asset(source).unwrap()
+}
+
+/// Options for a small, quick bake: an atlas of at most `atlas` texels.
+pub fn options(atlas: u32) -> BakeOptions {
+    let mut options = BakeOptions::default();
+    options.unwrap.max_atlas_size = atlas;
+    options
+}
+
+pub fn lights(map: &EnvironmentMap, mode: LightMode) -> LightSet {
+    LightSet::extract(map, mode, 0.0, 1.0)
+}
+
+/// Bakes `builder` under `lights` and checks the invariants every bake must keep.
+pub fn bake(gpu: &Gpu, builder: &SceneBuilder, lights: &LightSet, options: &BakeOptions) -> Baked {
+    let baked = bake::bake_scene(
+        gpu,
+        scene(builder, "test"),
+        Some(lights),
+        options,
+        &mut Silent,
+    )
+    .unwrap();
+    assert_valid(&baked);
+    baked
+}
+
+/// Every texel finite and non-negative, every texel inside the atlas.
+pub fn assert_valid(baked: &Baked) {
+    assert!(
+        !baked.texels.texels.is_empty(),
+        "the bake covered no texels"
+    );
+    for (texel, value) in baked.texels.texels.iter().zip(&baked.solution.lightmap) {
+        assert!(
+            value.iter().all(|c| c.is_finite() && *c >= 0.0),
+            "texel {} has value {value:?}",
+            texel.index
+        );
+        assert!(texel.index < baked.texels.width * baked.texels.height);
+    }
+}
+
+/// Lightmap values (red channel) of the texels of primitive `p`, with the texels.
+pub fn values_of(baked: &Baked, p: u32) -> Vec<(bake::texelize::Texel, f32)> {
+    baked
+        .texels
+        .texels
+        .iter()
+        .zip(&baked.solution.lightmap)
+        .filter(|(t, _)| t.primitive == p)
+        .map(|(t, v)| (*t, v[0]))
+        .collect()
+}
