@@ -184,6 +184,27 @@ pub fn load_environment(
     Ok((lights, report))
 }
 
+/// Cheap checks before any GPU work: every input and the environment are
+/// readable files. Errors name the file.
+pub fn preflight(config: &Config) -> Result<()> {
+    let readable = |path: &Path, what: &str| -> Result<()> {
+        let check = || -> std::io::Result<()> {
+            if std::fs::metadata(path)?.is_dir() {
+                return Err(std::io::Error::other("is a folder, not a file"));
+            }
+            std::fs::File::open(path).map(|_| ())
+        };
+        check().map_err(|e| anyhow::anyhow!("{what} '{}': cannot read: {e}", path.display()))
+    };
+    for input in &config.inputs {
+        readable(input, "input")?;
+    }
+    if let Some(env) = &config.environment {
+        readable(env, "environment")?;
+    }
+    Ok(())
+}
+
 /// The whole run: every input baked into a staging folder, then moved into
 /// `config.output` together with `report.json` only if everything succeeded.
 pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Report> {

@@ -23,6 +23,7 @@ fn main() -> ExitCode {
 
 fn run(args: Args) -> anyhow::Result<()> {
     let config = args.into_config()?;
+    bake::preflight(&config)?;
     let mut progress = Reporter::new(config.log);
     let gpu = Gpu::new(config.adapter.as_deref())?;
     if config.log != LogMode::Quiet {
