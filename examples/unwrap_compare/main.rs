@@ -58,8 +58,12 @@ fn main() -> anyhow::Result<()> {
                 "yes".to_string()
             } else {
                 format!(
-                    "**no** ({} overlapping texels, {} flipped, gap {:?}, border {:?})",
-                    q.overlap_texels, q.flipped_triangles, q.min_chart_gap, q.min_border_gap
+                    "**no** ({} texels shared by charts, {} within a chart, {} flipped, gap {:?}, border {:?})",
+                    q.overlap_texels,
+                    q.self_overlap_texels,
+                    q.flipped_triangles,
+                    q.min_chart_gap,
+                    q.min_border_gap
                 )
             };
             println!(

@@ -238,12 +238,56 @@ pub enum UnwrapError {
 /// Errors: invalid input ([`UnwrapError`]), or charts that cannot fit one page.
 pub fn run(meshes: &[MeshInput], options: &UnwrapOptions) -> anyhow::Result<Atlas> {
     validate(meshes, options)?;
-    let mut atlas = match options.backend {
-        Backend::Xatlas => xatlas::unwrap(meshes, options)?,
-        Backend::Uvunwrap => uvunwrap::unwrap(meshes, options)?,
+    let unwrap = |backend| -> anyhow::Result<Atlas> {
+        let mut atlas = match backend {
+            Backend::Xatlas => xatlas::unwrap(meshes, options)?,
+            Backend::Uvunwrap => uvunwrap::unwrap(meshes, options)?,
+        };
+        finish(meshes, &mut atlas);
+        Ok(atlas)
     };
-    finish(meshes, &mut atlas);
+    let mut atlas = unwrap(options.backend)?;
+    // Verify the promises (no overlap, no flip, real padding) on every result: a backend that
+    // breaks them on some input falls back to the other one, with a notice.
+    if let Some(problem) = problems(meshes, &atlas, options.padding) {
+        let other = match options.backend {
+            Backend::Xatlas => Backend::Uvunwrap,
+            Backend::Uvunwrap => Backend::Xatlas,
+        };
+        let mut alt = unwrap(other)?;
+        let note = format!("{} produced an invalid atlas ({problem})", options.backend);
+        match problems(meshes, &alt, options.padding) {
+            None => {
+                alt.notices
+                    .insert(0, format!("{note}; used {other} instead"));
+                atlas = alt;
+            }
+            Some(_) => atlas.notices.push(note),
+        }
+    }
     Ok(atlas)
+}
+
+/// What is wrong with `atlas`, if anything (see [`Quality::is_valid`]).
+fn problems(meshes: &[MeshInput], atlas: &Atlas, padding: u32) -> Option<String> {
+    if atlas.is_empty() {
+        return None;
+    }
+    let q = inspect(meshes, atlas, 2 * padding + 1);
+    if q.is_valid(padding) {
+        return None;
+    }
+    Some(format!(
+        "{} texels shared by two charts, {} texel centres covered twice within a chart, \
+         {} mirrored triangles, {} malformed triangles, closest charts {:?} texels apart, \
+         {:?} texels from the border",
+        q.overlap_texels,
+        q.self_overlap_texels,
+        q.flipped_triangles,
+        q.malformed_triangles,
+        q.min_chart_gap,
+        q.min_border_gap
+    ))
 }
 
 /// Checks the input against the documented requirements.
