@@ -307,6 +307,13 @@ fn check_padding(tris: &[Tri], atlas: &Atlas, padding: u32) {
 /// Every check on one scene and backend.
 fn check_all(meshes: &[Mesh], options: &UnwrapOptions) -> Atlas {
     let atlas = run(&inputs(meshes), options).expect("unwrap");
+    // The backend's own output passed run()'s validation (no fallback to the other backend).
+    assert!(
+        !atlas.notices.iter().any(|n| n.contains("invalid")),
+        "{:?}: {:?}",
+        options.backend,
+        atlas.notices
+    );
     assert!(atlas.width <= options.max_atlas_size && atlas.height <= options.max_atlas_size);
     let tris = check_structure(meshes, &atlas);
     check_overlap_and_flips(&tris, &atlas);
@@ -357,6 +364,22 @@ fn xatlas_valid_on_basic_scenes() {
 #[test]
 fn uvunwrap_valid_on_basic_scenes() {
     valid_on_basic_scenes(Backend::Uvunwrap);
+}
+
+/// The ~10k-vertex statue stand-in (xatlas takes about 10 s on it: its chart growing is slow).
+fn valid_on_statue(backend: Backend) {
+    let atlas = check_all(&[meshes::statue()], &options(backend));
+    assert!(atlas.chart_count >= 2 && atlas.utilization > 0.4);
+}
+
+#[test]
+fn xatlas_valid_on_statue() {
+    valid_on_statue(Backend::Xatlas);
+}
+
+#[test]
+fn uvunwrap_valid_on_statue() {
+    valid_on_statue(Backend::Uvunwrap);
 }
 
 fn padding_is_real(backend: Backend) {

@@ -14,7 +14,7 @@ pub struct Quality {
     /// Per chart, the number of triangles of its less common UV winding (mirrored triangles).
     pub flipped_triangles: u64,
     /// Triangles with a corner outside `[0, 1]²`, an index out of range, an `xref` out of range
-    /// or corners in different charts.
+    /// or corners in different charts, plus output triangles (or meshes) missing or in excess.
     pub malformed_triangles: u64,
     /// Fewest empty texels between texels of two different charts, if any two are closer than
     /// the `gap_limit` given to [`inspect`].
@@ -75,7 +75,11 @@ pub fn inspect(meshes: &[MeshInput], atlas: &Atlas, gap_limit: u32) -> Quality {
     // (chart, signed area) of each charted triangle, for the flip count.
     let mut tris: Vec<(usize, f64)> = Vec::new();
 
+    // Missing meshes or triangles count as malformed.
+    let missing = |n: usize, m: usize| (n.max(m) - n.min(m)) as u64;
+    malformed += missing(meshes.len(), atlas.meshes.len());
     for (m, out) in meshes.iter().zip(&atlas.meshes) {
+        malformed += missing(m.indices.len() / 3, out.indices.len() / 3);
         for t in out.indices.chunks_exact(3) {
             let Some(v) = t
                 .iter()

@@ -15,8 +15,10 @@
 //!   least `p` texels from the page border;
 //! - the output is deterministic: the same input and options give bit-identical output.
 //!
-//! [`inspect`] measures an atlas (overlaps, flips, padding, density error); the tests and the
-//! `unwrap_compare` example use it.
+//! Every result is verified before it is returned ([`inspect`]: no texel shared by two charts,
+//! no chart folding over itself, no mirrored triangle, real padding; about 30 ms for 20k
+//! triangles on a 1024² page). Should a backend break these promises on some input, [`run`]
+//! falls back to the other backend and says so in [`Atlas::notices`].
 
 mod check;
 mod uvunwrap;
@@ -48,21 +50,22 @@ impl<'a> MeshInput<'a> {
 /// The unwrapper behind [`run`].
 ///
 /// The default is [`Backend::Uvunwrap`], chosen on the measurements of
-/// `cargo run --release --example unwrap_compare` (sphere, cube, torus, ground quad, sphere on
-/// ground, 9k-vertex statue-like mesh; 1024² page, padding 2):
-/// - both backends produce overlap-free, correctly padded atlases once this module corrects
-///   xatlas' one-sided padding, but the 2019 xatlas occasionally leaves flipped triangles and
-///   self-overlapping charts (it only warns about invalid parameterizations), whereas uvunwrap
-///   splits and re-solves such charts, so its output is valid by construction;
-/// - uvunwrap spreads area distortion evenly (ARAP after LSCM), so its texel density is far more
-///   uniform: lower mean and maximum area distortion, and no non-uniform stretching of small
-///   charts to whole texels;
-/// - it packs denser (charts nest into each other's concavities), so the same page holds a
-///   higher density;
-/// - it is pure Rust, deterministic across thread counts by design, and needs no C++ toolchain.
+/// `cargo run --release --example unwrap_compare` (sphere, cube, torus, 10 m ground quad, sphere
+/// on ground, and a 10k-vertex / 20k-triangle statue-like mesh; automatic density on a 1024²
+/// page, padding 2):
+/// - both are overlap-free and correctly padded on every scene (xatlas once this module
+///   corrects its one-sided padding), so validity doesn't decide;
+/// - texel density: uvunwrap gives every chart exactly the requested density (per-chart area
+///   error 1.000, area-weighted mean triangle distortion 1.00–1.08), while the 2019 xatlas gives
+///   curved charts 1.3–1.6× (statue: 2.1×) the texel area they should get (it scales charts by
+///   surface/parametric area instead of its square root), mean triangle distortion up to 1.57;
+/// - the same page holds a higher density with uvunwrap (sphere 231 vs 182 texels/m, torus 205
+///   vs 182, statue 484 vs 352; xatlas' figures are nominal, its curved charts being inflated);
+/// - uvunwrap is 10–60× faster (statue: 0.26 s vs 14.6 s, where xatlas' chart growing alone
+///   takes ~10 s), pure Rust, deterministic by design, and re-solves invalid charts itself.
 ///
-/// xatlas is kept as an alternative: it is faster on some inputs and produces fewer, larger
-/// charts on smooth organic meshes.
+/// xatlas makes fewer, larger charts on organic meshes (statue: 8 vs 19), hence fewer seams;
+/// it remains available for comparison.
 #[derive(
     Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
 )]
@@ -147,7 +150,9 @@ pub struct Atlas {
     pub width: u32,
     /// Page height in texels, `<= max_atlas_size`. 0 only for an empty atlas.
     pub height: u32,
-    /// The texel density actually used, in texels per metre (0 for an empty atlas).
+    /// The texel density actually used, in texels per metre (0 for an empty atlas). With
+    /// [`Backend::Xatlas`] it is nominal: xatlas gives curved charts more texel area than this
+    /// (by their surface / parametric area ratio, typically 1.1–1.6×).
     pub texels_per_unit: f32,
     /// Number of charts over all meshes; chart ids are `0..chart_count`.
     pub chart_count: u32,

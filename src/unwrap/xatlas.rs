@@ -20,6 +20,12 @@
 //! - its tolerances are absolute (faces under 1.2e-7 units² are ignored, positions within 1e-4
 //!   are welded, and its position hash overflows beyond ±2·10⁷): positions are translated to
 //!   their bounding-box centre and scaled so the largest half-extent is 1000 units.
+//!
+//! Not corrected (measured by `unwrap_compare`): it scales each chart by
+//! `surface area / parametric area × texelsPerUnit` instead of the square root of that ratio,
+//! so curved (LSCM) charts get that ratio too much texel area (typically 1.1–1.6×); and it
+//! stretches every chart non-uniformly to whole texels. Invalid parameterizations it leaves
+//! (flips, folds) are caught by `run`'s validation, which then falls back to uvunwrap.
 
 use std::collections::HashMap;
 use std::ptr::NonNull;
@@ -164,6 +170,10 @@ impl XAtlas {
         unsafe { self.copy_out() }
     }
 
+    /// Copies the output meshes out of the atlas.
+    ///
+    /// # Safety
+    /// Only right after `PackCharts`, while nothing else can touch the atlas.
     unsafe fn copy_out(&self) -> anyhow::Result<Packed> {
         /// A slice from an xatlas array, empty when null.
         unsafe fn slice<'a, T>(ptr: *const T, len: u32) -> &'a [T] {

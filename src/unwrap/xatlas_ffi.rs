@@ -8,7 +8,8 @@
 //! The structs are `#[repr(C)]` mirrors of the header's; their layout is checked against the
 //! header (as compiled by g++ for x86-64 / LP64) in `tests/unwrap.rs`.
 //!
-//! Everything here is raw: use [`super::xatlas`] for the safe wrapper. Nothing else belongs in
+//! Everything here is raw: the safe wrapper is the private module `unwrap::xatlas`, used through
+//! [`super::run`] with [`super::Backend::Xatlas`]. Nothing else belongs in
 //! this file.
 #![allow(non_snake_case, missing_docs)]
 
