@@ -240,6 +240,9 @@ pub enum UnwrapError {
 /// empty (`width == height == 0`, `chart_count == 0`, every vertex at uv `(0, 0)` with chart
 /// `u32::MAX`) and a notice says so.
 ///
+/// The result is verified (see the module documentation); if the chosen backend's atlas breaks
+/// the promises, the other backend's is returned instead, with a notice.
+///
 /// Errors: invalid input ([`UnwrapError`]), or charts that cannot fit one page.
 pub fn run(meshes: &[MeshInput], options: &UnwrapOptions) -> anyhow::Result<Atlas> {
     validate(meshes, options)?;
@@ -259,15 +262,15 @@ pub fn run(meshes: &[MeshInput], options: &UnwrapOptions) -> anyhow::Result<Atla
             Backend::Xatlas => Backend::Uvunwrap,
             Backend::Uvunwrap => Backend::Xatlas,
         };
-        let mut alt = unwrap(other)?;
         let note = format!("{} produced an invalid atlas ({problem})", options.backend);
-        match problems(meshes, &alt, options.padding) {
-            None => {
+        match unwrap(other) {
+            Ok(mut alt) if problems(meshes, &alt, options.padding).is_none() => {
                 alt.notices
                     .insert(0, format!("{note}; used {other} instead"));
                 atlas = alt;
             }
-            Some(_) => atlas.notices.push(note),
+            // The other backend does no better: keep the first result, flagged.
+            _ => atlas.notices.push(note),
         }
     }
     Ok(atlas)
