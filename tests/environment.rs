@@ -689,6 +689,74 @@ mod exr_files {
     }
 
     #[test]
+    fn cropped_data_window_is_placed_in_the_display_window() {
+        let p = tmp("cropped.exr");
+        let (w, h) = (8usize, 4usize);
+        let mut layer = Layer::new(
+            (w, h),
+            LayerAttributes::default(),
+            Encoding::SMALL_LOSSLESS,
+            AnyChannels::sort(SmallVec::from_vec(vec![
+                AnyChannel::new("R", FlatSamples::F32(vec![1.0; w * h])),
+                AnyChannel::new("G", FlatSamples::F32(vec![2.0; w * h])),
+                AnyChannel::new("B", FlatSamples::F32(vec![3.0; w * h])),
+            ])),
+        );
+        layer.attributes.layer_position = Vec2(4, 2);
+        let display = exr::meta::attribute::IntegerBounds::new((0, 0), (32, 16));
+        Image::new(ImageAttributes::new(display), layer)
+            .write()
+            .to_file(&p)
+            .unwrap();
+        let l = EnvironmentMap::load(&p, &default_opts()).unwrap();
+        assert_eq!((l.map.width, l.map.height), (32, 16));
+        assert_eq!(l.map.texels[0], [0.0; 3]);
+        assert_eq!(l.map.texels[2 * 32 + 4], [1.0, 2.0, 3.0]);
+        assert_eq!(l.map.texels[5 * 32 + 11], [1.0, 2.0, 3.0]);
+        assert_eq!(l.map.texels[6 * 32 + 11], [0.0; 3]);
+        assert!(
+            l.notices.iter().any(|n| n.contains("display window")),
+            "{:?}",
+            l.notices
+        );
+    }
+
+    #[test]
+    fn declared_primaries_are_converted_to_rec709() {
+        let p = tmp("aces.exr");
+        let n = 16 * 8;
+        let layer = Layer::new(
+            (16, 8),
+            LayerAttributes::default(),
+            Encoding::SMALL_LOSSLESS,
+            AnyChannels::sort(SmallVec::from_vec(vec![
+                AnyChannel::new("R", FlatSamples::F32(vec![1.0; n])),
+                AnyChannel::new("G", FlatSamples::F32(vec![1.0; n])),
+                AnyChannel::new("B", FlatSamples::F32(vec![1.0; n])),
+            ])),
+        );
+        let mut image = Image::from_layer(layer);
+        // ACES 2065-1 (AP0, D60 white).
+        image.attributes.chromaticities = Some(exr::meta::attribute::Chromaticities {
+            red: Vec2(0.7347, 0.2653),
+            green: Vec2(0.0, 1.0),
+            blue: Vec2(0.0001, -0.0770),
+            white: Vec2(0.32168, 0.33767),
+        });
+        image.write().to_file(&p).unwrap();
+        let l = EnvironmentMap::load(&p, &default_opts()).unwrap();
+        let t = l.map.texels[0];
+        // AP0 white is D60: same luminance, slightly warmer than Rec. 709's D65 white.
+        assert!((luminance(t) - 1.0).abs() < 2e-3, "{t:?}");
+        assert!(t[0] > t[2], "{t:?}");
+        assert!(
+            l.notices.iter().any(|n| n.contains("Rec. 709")),
+            "{:?}",
+            l.notices
+        );
+    }
+
+    #[test]
     fn non_equirectangular_exr_is_rejected_with_its_size() {
         let p = tmp("300x200.exr");
         rgb_f32(&p, 300, 200, |_| [1.0; 3]);

@@ -18,17 +18,26 @@
 //! coarse for the budget, block-downsampled above 2²¹ cells so the tables stay small). A summed
 //! area table of `w = max(lum, 0)·Ω` and `w·d` gives, for any rectangle, its energy `E`, its
 //! centroid and its energy-weighted angular variance `σ² = 1 − |Σ w d|²/E²` (rad²) in O(1).
-//! Regions are refined greedily, the worst first, until `K` regions hold energy:
+//! Regions are refined greedily, the one with the largest error first, until `K` regions hold
+//! energy. The error of standing for a region with one light is `E · max(σ², Ω/6)`: its energy
+//! times the larger of its true angular variance and the variance the light appears to have
+//! when its energy is spread uniformly over the region's solid angle Ω (a square has Ω = 6σ²).
 //! * A region whose border strips are dark (mean luminance ≤ 5 % of the region's, at most 2 %
 //!   of its energy per side, together ≥ 20 % of its solid angle on one side) is first *trimmed*
 //!   there, so a light never claims a large dark solid angle (a sun's light shrinks to the sun,
-//!   the sky's lights stop at a black ground). Priority `E · max(σ², Ω/6)`.
+//!   the sky's lights stop at a black ground). Trims that split off a region without any energy
+//!   cost no light and are made even once the budget is spent.
 //! * A region that is *point-like* — its energy lies within an RMS radius
-//!   `σ ≤ 0.25 · √(4π/K)`, a quarter of the mean light spacing — and has nothing to trim is
-//!   final: splitting it would not change the lighting but would take lights from elsewhere.
-//!   This is what keeps a tiny sun 10⁴–10⁵× brighter than the sky as one small, bright light.
+//!   `σ ≤ 0.25 · √(4π/K)`, a quarter of the mean light spacing — and *tight* (`Ω ≤ 24 σ²`, i.e.
+//!   its energy fills its solid angle rather than sitting in a corner of it) is final: splitting
+//!   it would not change the lighting but would take lights from elsewhere. This is what keeps
+//!   a tiny sun 10⁴–10⁵× brighter than the sky as one small, bright light, while a sun inside a
+//!   bright glow is still carved out of the glow.
 //! * Any other region is cut, along whichever axis and at whichever cell boundary minimises the
-//!   children's summed `E·σ²` (Viriyothai & Debevec). Priority `E·σ²`.
+//!   children's summed `E·σ²` (Viriyothai & Debevec).
+//!
+//! Regions never get smaller than one grid cell; a budget larger than the map can resolve
+//! yields fewer lights (the `LightSet` says so in `notes`).
 //!
 //! The cut seam in longitude is placed at the darkest column boundary, so a sun on the map's
 //! seam is not split by it. Afterwards one pass over the map sums every region's exact RGB
@@ -808,30 +817,44 @@ fn budget_lights(map: &EnvironmentMap, k: usize) -> (Vec<Acc>, Vec<String>) {
         floor2,
     );
     let mut count = root.nonempty as usize;
+    debug_assert!(count <= k);
     push(root, &mut nodes, &mut heap, &mut finals);
-    while count < k {
-        let Some((_, Reverse(id))) = heap.pop() else {
-            break;
-        };
+    // Refine the worst region first. Once the budget is spent, only cuts that split off a
+    // region without energy (trimming black margins) are still made: they cost no light.
+    while let Some((_, Reverse(id))) = heap.pop() {
         let rect = nodes[id].rect;
+        let full = count >= k;
         let cut = match nodes[id].action {
-            Action::Cut(c) => c,
-            Action::Split => match grid.variance_cut(&rect, &grid.stats(&rect)) {
-                Some(c) => c,
-                None => {
-                    finals.push(id);
-                    continue;
-                }
-            },
+            Action::Cut(c) => Some(c),
+            Action::Split if !full => grid.variance_cut(&rect, &grid.stats(&rect)),
+            Action::Split => None,
             Action::Final => unreachable!("final regions are never queued"),
         };
+        let Some(cut) = cut else {
+            finals.push(id);
+            continue;
+        };
         let (a, b) = cut.apply(&rect);
-        let (na, nb) = (evaluate(&grid, a, floor2), evaluate(&grid, b, floor2));
-        count = count + na.nonempty as usize + nb.nonempty as usize - 1;
-        push(na, &mut nodes, &mut heap, &mut finals);
-        push(nb, &mut nodes, &mut heap, &mut finals);
+        let lit = |r: &Rect| (grid.stats(r).nz > 0) as usize;
+        let after = count + lit(&a) + lit(&b) - 1;
+        if after > k {
+            finals.push(id);
+            continue;
+        }
+        count = after;
+        push(
+            evaluate(&grid, a, floor2),
+            &mut nodes,
+            &mut heap,
+            &mut finals,
+        );
+        push(
+            evaluate(&grid, b, floor2),
+            &mut nodes,
+            &mut heap,
+            &mut finals,
+        );
     }
-    finals.extend(heap.into_iter().map(|(_, Reverse(id))| id));
     finals.sort_unstable();
 
     // Exact pass: every fine sample's energy goes to the region holding its cell.

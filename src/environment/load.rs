@@ -193,6 +193,8 @@ fn read_exr(file: File, notices: &mut Vec<String>) -> Result<EnvironmentMap, Str
         .all_attributes()
         .from_buffered(BufReader::new(file))
         .map_err(|e| format!("cannot decode OpenEXR: {e}"))?;
+    let display = image.attributes.display_window;
+    let chromaticities = image.attributes.chromaticities;
     let mut layers = image.layer_data;
     let parts = layers.len();
 
@@ -323,6 +325,12 @@ fn read_exr(file: File, notices: &mut Vec<String>) -> Result<EnvironmentMap, Str
 
     let layer = &mut layers[c.part];
     let (w, h) = (layer.size.x(), layer.size.y());
+    if layer.attributes.environment_map == Some(exr::meta::attribute::EnvironmentMap::Cube) {
+        return Err(format!(
+            "a cube-face environment ({w}×{h}, envmap=cube); only equirectangular \
+             (latitude-longitude) maps are supported"
+        ));
+    }
     if w > u32::MAX as usize || h > u32::MAX as usize || w.checked_mul(h).is_none() {
         return Err(format!("image too large ({w}×{h})"));
     }
@@ -373,12 +381,119 @@ fn read_exr(file: File, notices: &mut Vec<String>) -> Result<EnvironmentMap, Str
         }
         done.push(i);
     }
+    let data_pos = layer.attributes.layer_position;
     drop(layers);
-    Ok(EnvironmentMap {
+    let mut map = EnvironmentMap {
         width: w as u32,
         height: h as u32,
         texels,
+    };
+    if let Some(ch) = chromaticities.filter(|_| c.grey_from.is_none()) {
+        convert_primaries(&mut map, &ch, notices);
+    }
+    place_in_display_window(map, data_pos, &display, notices)
+}
+
+fn is_equirect_size(w: usize, h: usize) -> bool {
+    (w == 1 && h == 1) || (h > 0 && w == 2 * h)
+}
+
+/// EXR pixels live in a data window that may be smaller than (or offset from) the display
+/// window, e.g. when a writer cropped away black borders. The display window is the image's
+/// frame; when it is an equirectangular size and differs from the data window, the data is
+/// placed in it and the rest is black.
+fn place_in_display_window(
+    map: EnvironmentMap,
+    data_pos: exr::math::Vec2<i32>,
+    display: &exr::meta::attribute::IntegerBounds,
+    notices: &mut Vec<String>,
+) -> Result<EnvironmentMap, String> {
+    let (w, h) = (map.width as usize, map.height as usize);
+    let (dw, dh) = (display.size.x(), display.size.y());
+    let same = (dw, dh) == (w, h) && display.position == data_pos;
+    if same || !is_equirect_size(dw, dh) || dw.checked_mul(dh).is_none() {
+        return Ok(map);
+    }
+    let ox = data_pos.x() as i64 - display.position.x() as i64;
+    let oy = data_pos.y() as i64 - display.position.y() as i64;
+    let mut texels = vec![[0.0f32; 3]; dw * dh];
+    for row in 0..h as i64 {
+        let y = row + oy;
+        if y < 0 || y >= dh as i64 {
+            continue;
+        }
+        for col in 0..w as i64 {
+            let x = col + ox;
+            if x < 0 || x >= dw as i64 {
+                continue;
+            }
+            texels[y as usize * dw + x as usize] = map.texels[row as usize * w + col as usize];
+        }
+    }
+    notices.push(format!(
+        "the EXR data window ({w}×{h} at {},{}) differs from its display window ({dw}×{dh} at          {},{}); placed the pixels in the display window, black elsewhere",
+        data_pos.x(),
+        data_pos.y(),
+        display.position.x(),
+        display.position.y()
+    ));
+    Ok(EnvironmentMap {
+        width: dw as u32,
+        height: dh as u32,
+        texels,
     })
+}
+
+/// Rec. 709 / sRGB primaries and D65 white, the colour space the baker works in.
+const REC709: [[f64; 2]; 4] = [[0.64, 0.33], [0.30, 0.60], [0.15, 0.06], [0.3127, 0.3290]];
+
+/// RGB → XYZ matrix (columns: the primaries scaled so that RGB = 1 is the white point).
+fn rgb_to_xyz(p: &[[f64; 2]; 4]) -> Option<glam::DMat3> {
+    let xyz = |c: [f64; 2]| {
+        (c[1].abs() > 1e-9).then(|| glam::DVec3::new(c[0] / c[1], 1.0, (1.0 - c[0] - c[1]) / c[1]))
+    };
+    let m = glam::DMat3::from_cols(xyz(p[0])?, xyz(p[1])?, xyz(p[2])?);
+    if m.determinant().abs() < 1e-9 {
+        return None;
+    }
+    let s = m.inverse() * xyz(p[3])?;
+    Some(glam::DMat3::from_cols(
+        m.x_axis * s.x,
+        m.y_axis * s.y,
+        m.z_axis * s.z,
+    ))
+}
+
+/// Converts RGB in the file's declared primaries to Rec. 709 (same white: no chromatic
+/// adaptation beyond what the two white points imply, i.e. XYZ is kept as is).
+fn convert_primaries(
+    map: &mut EnvironmentMap,
+    ch: &exr::meta::attribute::Chromaticities,
+    notices: &mut Vec<String>,
+) {
+    let v = |c: exr::math::Vec2<f32>| [c.x() as f64, c.y() as f64];
+    let file = [v(ch.red), v(ch.green), v(ch.blue), v(ch.white)];
+    let close = file
+        .iter()
+        .zip(&REC709)
+        .all(|(a, b)| (a[0] - b[0]).abs() < 2e-3 && (a[1] - b[1]).abs() < 2e-3);
+    if close {
+        return;
+    }
+    let (Some(src), Some(dst)) = (rgb_to_xyz(&file), rgb_to_xyz(&REC709)) else {
+        notices.push("ignored the EXR's chromaticities: they are degenerate".into());
+        return;
+    };
+    let m = dst.inverse() * src;
+    for t in &mut map.texels {
+        let c = m * glam::DVec3::new(t[0] as f64, t[1] as f64, t[2] as f64);
+        *t = [c.x as f32, c.y as f32, c.z as f32];
+    }
+    notices.push(format!(
+        "converted the EXR's RGB primaries (r {:.4},{:.4} g {:.4},{:.4} b {:.4},{:.4} white          {:.4},{:.4}) to Rec. 709",
+        file[0][0], file[0][1], file[1][0], file[1][1], file[2][0], file[2][1], file[3][0],
+        file[3][1]
+    ));
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -31,6 +31,8 @@
 //!   ([`LightMode::Budget`], median-cut family).
 //! * [`write_exr`] / [`write_hdr`] (in `write.rs`) write maps, for fixtures and tests.
 
+#![warn(missing_docs)]
+
 mod lights;
 mod load;
 mod write;
@@ -41,6 +43,7 @@ use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
 
+pub use load::EnvLoadError;
 pub use write::{ExrPrecision, write_exr, write_hdr};
 
 /// Rec. 709 / sRGB-primaries luminance of linear RGB: `0.2126 R + 0.7152 G + 0.0722 B`.
