@@ -329,6 +329,38 @@ fn half_exr_clamps_values_beyond_half_range() {
 }
 
 #[test]
+fn hdr_writer_handles_values_rgbe_cannot_store() {
+    let texels = vec![
+        [1e-40, 0.0, 0.0],
+        [-1.0, 2.0, f32::NAN],
+        [3e38, 1.0, 1.0],
+        [0.5, 0.25, 0.125],
+    ];
+    let map = EnvironmentMap {
+        width: 4,
+        height: 1,
+        texels,
+    };
+    let p = tmp("rgbe_range.hdr");
+    write_hdr(&map, &p).unwrap();
+    let bytes = std::fs::read(&p).unwrap();
+    // Back through the image crate directly: the map is 4×1, not an environment.
+    let img = image::load_from_memory_with_format(&bytes, image::ImageFormat::Hdr)
+        .unwrap()
+        .into_rgb32f();
+    let px: Vec<[f32; 3]> = img.pixels().map(|p| p.0).collect();
+    assert_eq!(px[0], [0.0; 3]);
+    assert_eq!(px[1][0], 0.0);
+    assert!(
+        (px[1][1] - 2.0).abs() < 0.02 && px[1][2] == 0.0,
+        "{:?}",
+        px[1]
+    );
+    assert!(px[2][0] > 1e38 && px[2][0].is_finite(), "{:?}", px[2]);
+    assert_eq!(px[3], [0.5, 0.25, 0.125]);
+}
+
+#[test]
 fn format_is_chosen_by_content_not_extension() {
     let map = wide_range_map();
     let exr_as_hdr = tmp("really_exr.hdr");

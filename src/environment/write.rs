@@ -78,9 +78,15 @@ pub fn write_exr(
     result.with_context(|| format!("cannot write OpenEXR '{}'", path.display()))
 }
 
+/// Smallest largest-channel value RGBE stores (2⁻¹²⁷; the exponent byte is then 1).
+const MIN_RGBE: f32 = 5.877_472e-39;
+/// Largest value RGBE stores (just below 2¹²⁷).
+const MAX_RGBE: f32 = 1.7e38;
+
 /// Writes `map` as a Radiance RGBE (`.hdr`) file with the `image` crate's encoder (standard
 /// `-Y H +X W` orientation, run-length encoded scanlines). RGBE keeps about 1 % relative
-/// precision per pixel (relative to the pixel's largest channel); negative values become 0.
+/// precision per pixel (relative to the pixel's largest channel, truncated); negative and NaN
+/// values become 0, pixels darker than 2⁻¹²⁷ black, values above 1.7e38 1.7e38.
 pub fn write_hdr(map: &EnvironmentMap, path: impl AsRef<Path>) -> anyhow::Result<()> {
     let path = path.as_ref();
     let (w, h) = (map.width as usize, map.height as usize);
@@ -92,10 +98,36 @@ pub fn write_hdr(map: &EnvironmentMap, path: impl AsRef<Path>) -> anyhow::Result
         h,
         map.texels.len()
     );
-    let pixels: Vec<image::Rgb<f32>> = map.texels.iter().map(|&t| image::Rgb(t)).collect();
+    // RGBE holds non-negative values with a shared exponent in 2^-128 … 2^127; pixels whose
+    // largest channel is below that range are written black (the encoder would wrap its
+    // exponent), negative / NaN channels as 0, larger values as the largest RGBE value.
+    let representable = |t: &[f32; 3]| {
+        let mx = t[0].max(t[1]).max(t[2]);
+        t.iter().all(|v| *v >= 0.0) && (mx == 0.0 || (MIN_RGBE..=MAX_RGBE).contains(&mx))
+    };
+    let fixed: Option<Vec<[f32; 3]>> = (!map.texels.iter().all(representable)).then(|| {
+        map.texels
+            .iter()
+            .map(|t| {
+                let t = t.map(|v| if v > 0.0 { v.min(MAX_RGBE) } else { 0.0 });
+                if t[0].max(t[1]).max(t[2]) < MIN_RGBE {
+                    [0.0; 3]
+                } else {
+                    t
+                }
+            })
+            .collect()
+    });
+    let texels = fixed.as_deref().unwrap_or(&map.texels);
     let write = || -> anyhow::Result<()> {
+        use image::ImageEncoder;
         let mut out = BufWriter::new(File::create(path)?);
-        image::codecs::hdr::HdrEncoder::new(&mut out).encode(&pixels, w, h)?;
+        image::codecs::hdr::HdrEncoder::new(&mut out).write_image(
+            bytemuck::cast_slice(texels),
+            map.width,
+            map.height,
+            image::ExtendedColorType::Rgb32F,
+        )?;
         out.flush()?;
         Ok(())
     };
