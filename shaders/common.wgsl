@@ -69,3 +69,110 @@ const MAX_BATCH: u32 = 256u;
 struct LightBatch {
     items: array<DirectLight, MAX_BATCH>,
 }
+
+// --- solve: progressive refinement of bounced and emitted light ---
+
+// A shooter patch. Mirrors `patches::Patch`.
+struct Patch {
+    position: vec3f,     // area-weighted centroid, world
+    area: f32,           // m²
+    normal: vec3f,       // unit mean normal
+    first: u32,          // first member in the member list
+    rect_centre: vec3f,  // the parallelogram its atlas cell maps to: centre,
+    count: u32,          // member texels
+    half_u: vec3f,       // half of one side,
+    lift: f32,           // how far its own surface rises above the centroid's tangent plane
+    half_v: vec3f,       // half of the other side
+    radius: f32,         // centre to farthest corner
+}
+
+// A patch chosen to shoot in this batch. Mirrors `bounce::Shooter`.
+struct Shooter {
+    position: vec3f,     // centroid, world
+    area: f32,
+    normal: vec3f,
+    patch_index: u32,    // NO_TRIANGLE when the slot is unused
+    radiance: vec3f,     // unshot radiance ΔL it shoots, rgb
+    radius: f32,         // near-field reach: receivers closer use the exact polygon form factor
+    rect_centre: vec3f,
+    lift: f32,           // the hemicube sits this far above the centroid
+    half_u: vec3f,
+    rect_area: f32,
+    half_v: vec3f,
+    _pad: u32,
+}
+
+// Mirrors `bounce::BounceParams`.
+struct BounceParams {
+    texel_count: u32,
+    patch_count: u32,
+    shooter_count: u32,    // slots per batch
+    row_stride: u32,       // invocations per dispatch row
+    face_size: f32,        // hemicube face width, texels
+    tiles_per_row: u32,    // hemicubes per row of the depth atlas
+    far: f32,              // distance that maps to depth 1, metres
+    near: f32,             // near plane, metres
+    receiver_offset: f32,  // receivers test a point this far along their face normal, metres
+    max_slope: f32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+// Totals the select pass leaves for the CPU. Mirrors `bounce::Stats`.
+struct BounceStats {
+    unshot: vec4f,    // Σ ΔL·A over all patches, rgb; w = luminance
+    received: vec4f,  // Σ received L_lm·A in the last shoot pass; w = luminance
+    shot: vec4f,      // Σ ΔL·A of the shooters chosen now; w = luminance
+    shooters: u32,    // shooters with power in this batch
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+fn luminance(c: vec3f) -> f32 {
+    return dot(c, vec3f(0.2126, 0.7152, 0.0722));
+}
+
+// The hemicube's origin: the centroid lifted off the patch's own surface.
+fn hemicube_origin(s: Shooter) -> vec3f {
+    return s.position + s.normal * s.lift;
+}
+
+// Hemicube faces: 0 along the normal, 1..4 the half faces around it
+// (+t, −t, +b, −b). Returns (u, v, forward) with u, v in [−1, 1] across the
+// face's viewport; for half faces v spans only the half above the shooter's
+// plane. Used by the depth render and by receivers, so both agree exactly.
+fn hemicube_face(local: vec3f, face: u32) -> vec3f {
+    switch face {
+        case 0u: { return vec3f(local.x / local.z, local.y / local.z, local.z); }
+        case 1u: { return vec3f(local.y / local.x, 2.0 * local.z / local.x - 1.0, local.x); }
+        case 2u: { return vec3f(local.y / -local.x, 2.0 * local.z / -local.x - 1.0, -local.x); }
+        case 3u: { return vec3f(local.x / local.y, 2.0 * local.z / local.y - 1.0, local.y); }
+        default: { return vec3f(local.x / -local.y, 2.0 * local.z / -local.y - 1.0, -local.y); }
+    }
+}
+
+// The face a direction (in the shooter's frame, local.z > 0) falls on.
+fn hemicube_face_of(local: vec3f) -> u32 {
+    let a = abs(local);
+    if (local.z >= a.x && local.z >= a.y) {
+        return 0u;
+    }
+    if (a.x >= a.y) {
+        return select(2u, 1u, local.x > 0.0);
+    }
+    return select(4u, 3u, local.y > 0.0);
+}
+
+// Top-left texel and size of `face` of hemicube `slot` in the depth atlas.
+// A hemicube tile is 3S × S: the top face, then ±t stacked, then ±b stacked.
+fn hemicube_viewport(slot: u32, face: u32, size: f32, tiles_per_row: u32) -> vec4f {
+    let tile = vec2f(f32(slot % tiles_per_row) * 3.0 * size, f32(slot / tiles_per_row) * size);
+    switch face {
+        case 0u: { return vec4f(tile, size, size); }
+        case 1u: { return vec4f(tile + vec2f(size, 0.0), size, 0.5 * size); }
+        case 2u: { return vec4f(tile + vec2f(size, 0.5 * size), size, 0.5 * size); }
+        case 3u: { return vec4f(tile + vec2f(2.0 * size, 0.0), size, 0.5 * size); }
+        default: { return vec4f(tile + vec2f(2.0 * size, 0.5 * size), size, 0.5 * size); }
+    }
+}

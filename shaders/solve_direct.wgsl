@@ -7,10 +7,13 @@
 @group(0) @binding(0) var<uniform> params: DirectParams;
 @group(0) @binding(1) var<uniform> lights: LightBatch;
 @group(0) @binding(2) var<storage, read> texels: array<Texel>;
-// Irradiance E per texel (rgb), accumulated over batches.
+// Irradiance E per texel (rgb) and the number of lights in front of it that
+// geometry blocks (w), accumulated over batches. No texel blocked means no
+// surface sees another: the bounce pass has nothing to do.
 @group(0) @binding(3) var<storage, read_write> irradiance: array<vec4f>;
 // The batch's shadow maps, tiled `tiles_per_row` to a row.
 @group(0) @binding(4) var depth_maps: texture_depth_2d;
+
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -26,6 +29,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let p = texel.position + face * params.normal_offset;
     let size = params.map_size;
     var sum = vec3f(0.0);
+    var blocked = 0u;
     for (var k = 0u; k < params.light_count; k++) {
         let light = lights.items[k];
         let w = light.direction.xyz;
@@ -44,7 +48,9 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         let bias = (params.constant_bias + params.slope_bias * tangent) / (2.0 * params.radius);
         if (ls.z <= stored + bias) {
             sum += light.power.rgb * cos_n;
+        } else {
+            blocked += 1u;
         }
     }
-    irradiance[i] += vec4f(sum, 0.0);
+    irradiance[i] += vec4f(sum, f32(blocked));
 }

@@ -13,6 +13,10 @@ struct RasterParams {
     size: vec2f,       // atlas width, height in texels
     dilation: f32,     // texels; half the texel diagonal reaches every overlapped texel
     max_miter: f32,    // cap on how far a sharp corner moves, texels
+    inset: f32,        // how far inside the chart border texels take their data, texels
+    _pad0: f32,
+    _pad1: f32,
+    _pad2: f32,
 }
 
 @group(0) @binding(0) var<uniform> params: RasterParams;
@@ -132,9 +136,22 @@ fn fs_nearest(in: VsOut) -> NearestOut {
     if (distance > params.dilation) {
         discard;
     }
+    // A texel whose centre lies outside the triangle takes its data from a
+    // point half a texel inside the chart, not from the edge itself: an edge
+    // point lies exactly on the geometry that meets it (a wall on a floor)
+    // and would see half its sky cut off.
+    var weights = w;
+    // (Centres on an edge shared by two triangles are off by f32 rounding
+    // only; they keep their own position.)
+    if (distance > 1e-3) {
+        // Straight on from the texel centre through its nearest point, kept
+        // inside the triangle.
+        let target_point = q + (q - p) * (params.inset / distance);
+        weights = closest_barycentric(target_point, in.a, in.b, in.c);
+    }
     var out: NearestOut;
     out.triangle = in.triangle + 1u;
-    out.bary = w.yz;
+    out.bary = weights.yz;
     out.depth = distance / (2.0 * params.dilation);
     return out;
 }

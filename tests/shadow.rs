@@ -2,6 +2,7 @@
 //! point right below a sphere of radius R whose centre is at height d sees a
 //! cap of the sky blocked whose cosine-weighted share is (R/d)², so there
 //! L_lm = L (1 − (R/d)²); far away the ground sees (almost) the whole sky.
+//! The sphere is black so that no light bounces back onto the ground.
 
 mod common;
 
@@ -24,7 +25,7 @@ fn sphere_darkens_the_ground_beneath_it_by_the_analytic_amount() {
     builder.object(
         "sphere",
         &MeshData::sphere(radius, 64, 32),
-        [0.5, 0.5, 0.5, 1.0],
+        [0.0, 0.0, 0.0, 1.0],
         [0.0; 3],
         Placement::at(Vec3::new(0.0, height, 0.0)),
     );

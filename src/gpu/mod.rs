@@ -148,7 +148,7 @@ impl Gpu {
             Some(first) => bail!(
                 "{stage}: GPU error on {}: {}{}",
                 self.adapter.name,
-                first.lines().next().unwrap_or(first),
+                one_line(first),
                 if errors.len() > 1 {
                     format!(" (and {} more)", errors.len() - 1)
                 } else {
@@ -250,6 +250,11 @@ impl Gpu {
             (max, groups.div_ceil(max))
         }
     }
+}
+
+/// wgpu's messages span several indented lines; a CLI error is one line.
+fn one_line(message: &str) -> String {
+    message.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join(": ").replace(":: ", ": ")
 }
 
 fn preference_rank(kind: wgpu::DeviceType) -> u8 {

@@ -16,6 +16,14 @@ pub enum Shader {
     SolveDepth,
     /// Direct environment light: every texel gathers the lights of one batch.
     SolveDirect,
+    /// Per-patch sums of unshot power.
+    SolvePatchPower,
+    /// Picks the batch's shooter patches and totals the unshot power.
+    SolveSelect,
+    /// Hemicube depth maps from each shooter.
+    SolveHemicube,
+    /// Every texel gathers the batch's shots.
+    SolveShoot,
 }
 
 impl Shader {
@@ -24,6 +32,10 @@ impl Shader {
         Shader::TexelizeAttributes,
         Shader::SolveDepth,
         Shader::SolveDirect,
+        Shader::SolvePatchPower,
+        Shader::SolveSelect,
+        Shader::SolveHemicube,
+        Shader::SolveShoot,
     ];
 
     /// The file stem, also used as the pipeline label.
@@ -33,6 +45,10 @@ impl Shader {
             Shader::TexelizeAttributes => "texelize_attributes",
             Shader::SolveDepth => "solve_depth",
             Shader::SolveDirect => "solve_direct",
+            Shader::SolvePatchPower => "solve_patch_power",
+            Shader::SolveSelect => "solve_select",
+            Shader::SolveHemicube => "solve_hemicube",
+            Shader::SolveShoot => "solve_shoot",
         }
     }
 
@@ -42,6 +58,10 @@ impl Shader {
             Shader::TexelizeAttributes => include_str!("../../shaders/texelize_attributes.wgsl"),
             Shader::SolveDepth => include_str!("../../shaders/solve_depth.wgsl"),
             Shader::SolveDirect => include_str!("../../shaders/solve_direct.wgsl"),
+            Shader::SolvePatchPower => include_str!("../../shaders/solve_patch_power.wgsl"),
+            Shader::SolveSelect => include_str!("../../shaders/solve_select.wgsl"),
+            Shader::SolveHemicube => include_str!("../../shaders/solve_hemicube.wgsl"),
+            Shader::SolveShoot => include_str!("../../shaders/solve_shoot.wgsl"),
         }
     }
 

@@ -39,6 +39,8 @@ pub struct DirectStats {
     pub shadow_map_size: u32,
     /// Texel-light pairs evaluated.
     pub evaluations: u64,
+    /// Texels that some light in front of them does not reach (geometry in the way).
+    pub shadowed_texels: u64,
     pub seconds: f64,
 }
 
@@ -70,7 +72,7 @@ struct DirectLight {
 
 /// The scene's bounding sphere (centre, radius with a margin so that
 /// geometry never touches the near or far plane).
-fn bounding_sphere(scene: &Scene) -> (Vec3, f32) {
+pub(super) fn bounding_sphere(scene: &Scene) -> (Vec3, f32) {
     let (lo, hi) = scene.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
     let centre = (lo + hi) * 0.5;
     let radius = scene
@@ -133,21 +135,7 @@ pub fn run(
         _pad: [0; 3],
     };
 
-    // Shadow casters: every triangle, both sides (a one-sided plane still blocks light).
-    let mut positions: Vec<[f32; 3]> = Vec::new();
-    let mut indices: Vec<u32> = Vec::new();
-    for primitive in &scene.primitives {
-        let base = positions.len() as u32;
-        positions.extend_from_slice(&primitive.positions);
-        indices.extend(primitive.indices.iter().map(|i| i + base));
-    }
-    let vertex_buffer = gpu.storage_buffer(
-        "solve_depth positions",
-        &positions,
-        wgpu::BufferUsages::VERTEX,
-    );
-    let index_buffer =
-        gpu.storage_buffer("solve_depth indices", &indices, wgpu::BufferUsages::INDEX);
+    let (vertex_buffer, index_buffer, index_count) = caster_buffers(gpu, scene);
 
     let params_buffer = gpu.uniform_buffer("solve_direct params", &params);
     let lights_buffer = gpu.uniform_buffer(
@@ -306,7 +294,7 @@ pub fn run(
                     0.0,
                     1.0,
                 );
-                pass.draw_indexed(0..indices.len() as u32, 0, slot..slot + 1);
+                pass.draw_indexed(0..index_count, 0, slot..slot + 1);
             }
         }
         {
@@ -327,12 +315,28 @@ pub fn run(
         batches,
         shadow_map_size: size,
         evaluations: total * texel_count as u64,
+        shadowed_texels: sums.iter().filter(|e| e[3] > 0.0).count() as u64,
         seconds: start.elapsed().as_secs_f64(),
     };
     Ok((
         sums.into_iter().map(|e| [e[0], e[1], e[2]]).collect(),
         stats,
     ))
+}
+
+/// Shadow casters for depth maps: every triangle of the scene in world space,
+/// drawn from both sides (a one-sided plane still blocks light).
+pub(super) fn caster_buffers(gpu: &Gpu, scene: &Scene) -> (wgpu::Buffer, wgpu::Buffer, u32) {
+    let mut positions: Vec<[f32; 3]> = Vec::new();
+    let mut indices: Vec<u32> = Vec::new();
+    for primitive in &scene.primitives {
+        let base = positions.len() as u32;
+        positions.extend_from_slice(&primitive.positions);
+        indices.extend(primitive.indices.iter().map(|i| i + base));
+    }
+    let vertices = gpu.storage_buffer("scene positions", &positions, wgpu::BufferUsages::VERTEX);
+    let index_buffer = gpu.storage_buffer("scene indices", &indices, wgpu::BufferUsages::INDEX);
+    (vertices, index_buffer, indices.len() as u32)
 }
 
 fn depth_pipeline(gpu: &Gpu, layout: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {

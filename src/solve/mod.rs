@@ -1,9 +1,15 @@
 //! Solve stage: TexelSet + LightSet in, `Solution` out: the lightmap value
-//! L_lm = E/π (incident irradiance over π, linear RGB) of every texel.
+//! L_lm = E/π (incident irradiance over π, linear RGB) of every texel, with
+//! radiosity in radiance units L_i = Le_i + ρ_i Σ_j F_ij L_j.
 //!
-//! Passes: `direct` (environment light through per-light depth maps).
+//! Passes, each left out when the scene does not need it:
+//! `direct` (environment light through per-light depth maps), then `bounce`
+//! (progressive refinement of reflected and emitted light between
+//! `patches`).
 
+pub mod bounce;
 pub mod direct;
+pub mod patches;
 
 use anyhow::Result;
 use serde::{Deserialize, Serialize};
@@ -12,6 +18,7 @@ use crate::environment::LightSet;
 use crate::gpu::Gpu;
 use crate::scene::Scene;
 use crate::texelize::TexelSet;
+pub use bounce::{BounceOptions, BounceStats, TracePoint};
 
 /// Options of the solve, with their defaults.
 #[derive(Clone, Debug)]
@@ -21,14 +28,12 @@ pub struct SolveOptions {
     pub shadow_map_size: Option<u32>,
     /// Lights rendered and gathered per GPU batch (at most 256).
     pub batch_size: u32,
+    pub bounce: BounceOptions,
 }
 
 impl Default for SolveOptions {
     fn default() -> Self {
-        SolveOptions {
-            shadow_map_size: None,
-            batch_size: 64,
-        }
+        SolveOptions { shadow_map_size: None, batch_size: 64, bounce: BounceOptions::default() }
     }
 }
 
@@ -38,8 +43,17 @@ pub struct Solution {
     /// L_lm = E/π per texel, linear RGB.
     pub lightmap: Vec<[f32; 3]>,
     pub direct: Option<direct::DirectStats>,
+    pub bounce: Option<BounceStats>,
     /// Passes left out and why, for the report.
     pub skipped: Vec<Skipped>,
+}
+
+impl Solution {
+    /// Outgoing radiance of texel `i`: albedo·L_lm + emission.
+    pub fn radiosity(&self, texels: &TexelSet, i: usize) -> [f32; 3] {
+        let t = &texels.texels[i];
+        [0, 1, 2].map(|c| t.albedo[c] * self.lightmap[i][c] + t.emission[c])
+    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -48,7 +62,12 @@ pub struct Skipped {
     pub reason: String,
 }
 
-/// Runs every pass the scene needs.
+fn skip(skipped: &mut Vec<Skipped>, pass: &str, reason: &str) {
+    skipped.push(Skipped { pass: pass.into(), reason: reason.into() });
+}
+
+/// Runs every pass the scene needs. `progress(done, total)` reports the
+/// current pass.
 pub fn run(
     gpu: &Gpu,
     scene: &Scene,
@@ -61,34 +80,34 @@ pub fn run(
     let mut skipped = Vec::new();
     let mut lightmap = vec![[0.0f32; 3]; texels.texels.len()];
     let mut direct_stats = None;
+    let mut sees_itself = true;
     match lights {
         Some(lights) if !lights.lights.is_empty() => {
-            let (irradiance, stats) = direct::run(
-                gpu,
-                scene,
-                texels,
-                lights,
-                texels_per_unit,
-                options,
-                progress,
-            )?;
+            let (irradiance, stats) = direct::run(gpu, scene, texels, lights, texels_per_unit, options, progress)?;
             for (value, e) in lightmap.iter_mut().zip(irradiance) {
                 *value = e.map(|c| c / std::f32::consts::PI);
             }
+            sees_itself = stats.shadowed_texels > 0;
             direct_stats = Some(stats);
         }
-        Some(_) => skipped.push(Skipped {
-            pass: "direct".into(),
-            reason: "the environment has no energy".into(),
-        }),
-        None => skipped.push(Skipped {
-            pass: "direct".into(),
-            reason: "no environment was given".into(),
-        }),
+        Some(_) => skip(&mut skipped, "direct", "the environment has no energy"),
+        None => skip(&mut skipped, "direct", "no environment was given"),
     }
-    Ok(Solution {
-        lightmap,
-        direct: direct_stats,
-        skipped,
-    })
+
+    let emitters = texels.texels.iter().any(|t| t.area > 0.0 && t.emission.iter().any(|&e| e > 0.0));
+    let reflects = texels.texels.iter().zip(&lightmap).any(|(t, l)| t.area > 0.0 && (0..3).any(|c| t.albedo[c] * l[c] > 0.0));
+    if !emitters {
+        skip(&mut skipped, "emission", "no surface is emissive");
+    }
+    let mut bounce_stats = None;
+    if !emitters && !reflects {
+        skip(&mut skipped, "bounce", "no light to bounce: the surfaces are black or unlit");
+    } else if !sees_itself {
+        skip(&mut skipped, "bounce", "no surface sees another (every texel sees open sky in every direction)");
+    } else {
+        let patches = patches::build(texels, options.bounce.patches, 1.0 / texels_per_unit.max(1e-30));
+        let stats = bounce::run(gpu, scene, texels, &patches, &mut lightmap, texels_per_unit, &options.bounce, progress)?;
+        bounce_stats = Some(stats);
+    }
+    Ok(Solution { lightmap, direct: direct_stats, bounce: bounce_stats, skipped })
 }

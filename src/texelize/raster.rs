@@ -14,6 +14,9 @@ use crate::gpu::{self, Gpu, Shader, read_buffer};
 const DILATION: f32 = 0.7072;
 /// How far (texels) a sharp UV corner may move when dilated.
 const MAX_MITER: f32 = 4.0;
+/// How far inside the chart a border texel (centre outside every triangle)
+/// takes its position and normal from, texels.
+const BORDER_INSET: f32 = 0.5;
 /// Upper bound on the bytes of one attribute band (storage bindings are limited).
 const BAND_BYTES: u64 = 64 << 20;
 
@@ -24,6 +27,8 @@ struct RasterParams {
     size: [f32; 2],
     dilation: f32,
     max_miter: f32,
+    inset: f32,
+    _pad: [f32; 3],
 }
 
 /// Mirrors `AttributeParams` in texelize_attributes.wgsl.
@@ -110,6 +115,8 @@ fn rasterize(gpu: &Gpu, mesh: &Mesh, width: u32, height: u32, targets: &Targets)
             size: [width as f32, height as f32],
             dilation: DILATION,
             max_miter: MAX_MITER,
+            inset: BORDER_INSET,
+            _pad: [0.0; 3],
         },
     );
     let corners = gpu.storage_buffer(

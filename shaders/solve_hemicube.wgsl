@@ -1,0 +1,42 @@
+// Hemicube depth maps, one per shooter of the batch (design notes, algorithm
+// step 4). The seed projects the hemisphere in one pass (its Table 3), but a
+// nonlinear projection bends triangle edges that the rasterizer draws
+// straight; five perspective faces are exact. Depth is the true distance
+// from the shooter, written per fragment.
+
+@group(0) @binding(0) var<uniform> params: BounceParams;
+@group(0) @binding(1) var<storage, read> shooters: array<Shooter>;
+
+struct VsOut {
+    @builtin(position) clip: vec4f,
+    @location(0) local: vec3f,
+}
+
+@vertex
+fn vs_hemicube(@location(0) position: vec3f, @builtin(instance_index) instance: u32) -> VsOut {
+    let shooter = shooters[instance / 5u];
+    let face = instance % 5u;
+    let m = basis(shooter.normal);
+    let d = position - hemicube_origin(shooter);
+    let local = vec3f(dot(d, m[0]), dot(d, m[1]), dot(d, m[2]));
+    var w: f32;
+    var x: f32;
+    var y: f32;
+    switch face {
+        case 0u: { w = local.z; x = local.x; y = local.y; }
+        case 1u: { w = local.x; x = local.y; y = 2.0 * local.z - w; }
+        case 2u: { w = -local.x; x = local.y; y = 2.0 * local.z - w; }
+        case 3u: { w = local.y; x = local.x; y = 2.0 * local.z - w; }
+        default: { w = -local.y; x = local.x; y = 2.0 * local.z - w; }
+    }
+    var out: VsOut;
+    // z = w − near keeps 0 ≤ z ≤ w exactly for points in front of the near plane.
+    out.clip = vec4f(x, y, w - params.near, w);
+    out.local = local;
+    return out;
+}
+
+@fragment
+fn fs_hemicube(in: VsOut) -> @builtin(frag_depth) f32 {
+    return clamp(length(in.local) / params.far, 0.0, 1.0);
+}

@@ -1,0 +1,31 @@
+// Per-patch unshot light (design notes, algorithm step 4): each patch sums
+// ΔL·A over its texels (a GPU reduction; the seed reads a 1×1 buffer). One
+// invocation per patch, members in a fixed order, so the sums are
+// deterministic.
+
+@group(0) @binding(0) var<uniform> params: BounceParams;
+@group(0) @binding(1) var<storage, read> texels: array<Texel>;
+@group(0) @binding(2) var<storage, read> patches: array<Patch>;
+@group(0) @binding(3) var<storage, read> members: array<u32>;
+// Per texel: rgb = unshot radiance ΔL, w = luminance·area received in the last shoot.
+@group(0) @binding(4) var<storage, read> unshot: array<vec4f>;
+// Per patch: rgb = Σ ΔL·A, w = Σ received luminance·area.
+@group(0) @binding(5) var<storage, read_write> patch_power: array<vec4f>;
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    let j = id.x + id.y * params.row_stride;
+    if (j >= params.patch_count) {
+        return;
+    }
+    let own = patches[j];
+    var power = vec3f(0.0);
+    var received = 0.0;
+    for (var m = 0u; m < own.count; m++) {
+        let i = members[own.first + m];
+        let u = unshot[i];
+        power += u.rgb * texels[i].area;
+        received += u.w;
+    }
+    patch_power[j] = vec4f(power, received);
+}

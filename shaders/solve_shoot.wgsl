@@ -1,0 +1,145 @@
+// One batch of shots (design notes, algorithm step 4): every receiver texel
+// i gathers from each shooter j of the batch
+//     L_lm,i += F_ij ΔL_j,   L_i, ΔL_i += ρ_i F_ij ΔL_j,
+// with the seed's bounded disc form factor (its eq. 2)
+//     F_ij = cos θ_i cos θ_j A_j / (π r² + A_j),
+// finite as r → 0, and visibility from the shooter's hemicube. Texels of a
+// patch that shot have their unshot light cleared. Gathering per texel in a
+// fixed order keeps bakes identical run to run.
+
+@group(0) @binding(0) var<uniform> params: BounceParams;
+@group(0) @binding(1) var<storage, read> texels: array<Texel>;
+@group(0) @binding(2) var<storage, read> texel_patch: array<u32>;
+@group(0) @binding(3) var<storage, read> shooters: array<Shooter>;
+@group(0) @binding(4) var<storage, read_write> lightmap: array<vec4f>;
+@group(0) @binding(5) var<storage, read_write> unshot: array<vec4f>;
+@group(0) @binding(6) var depth: texture_depth_2d;
+
+const MAX_SHOOTERS: u32 = 64u;
+// Receivers closer than this many patch radii use the exact polygon form factor.
+const NEAR_FIELD: f32 = 8.0;
+var<workgroup> batch: array<Shooter, MAX_SHOOTERS>;
+
+// The form factor from a point at p with unit normal n to a planar polygon
+// (Lambert's contour integral; Baum, Rushmeier & Winget 1989): the polygon
+// is first clipped to the point's upper hemisphere. Exact and bounded for
+// any distance, including a receiver touching the shooter.
+fn polygon_form_factor(p: vec3f, n: vec3f, corners: array<vec3f, 4>) -> f32 {
+    var poly: array<vec3f, 8>;
+    var count = 0u;
+    for (var k = 0u; k < 4u; k++) {
+        let a = corners[k] - p;
+        let b = corners[(k + 1u) % 4u] - p;
+        let da = dot(a, n);
+        let db = dot(b, n);
+        if (da >= 0.0) {
+            poly[count] = a;
+            count++;
+        }
+        if ((da >= 0.0) != (db >= 0.0)) {
+            poly[count] = a + (b - a) * (da / (da - db));
+            count++;
+        }
+    }
+    var sum = 0.0;
+    for (var k = 0u; k < count; k++) {
+        let a = normalize(poly[k]);
+        let b = normalize(poly[(k + 1u) % count]);
+        let c = cross(a, b);
+        let length_c = length(c);
+        if (length_c > 1e-9) {
+            sum += atan2(length_c, dot(a, b)) * dot(n, c) / length_c;
+        }
+    }
+    return abs(sum) / (2.0 * PI);
+}
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    // Shooters are read once per workgroup into shared memory.
+    for (var k = lid; k < params.shooter_count; k += 64u) {
+        batch[k] = shooters[k];
+    }
+    workgroupBarrier();
+    let i = id.x + id.y * params.row_stride;
+    if (i >= params.texel_count) {
+        return;
+    }
+    let texel = texels[i];
+    let own_patch = texel_patch[i];
+    let p = texel.position + texel.face_normal * params.receiver_offset;
+    let size = params.face_size;
+    var gathered = vec3f(0.0);
+    var shot = false;
+    for (var k = 0u; k < params.shooter_count; k++) {
+        let s = batch[k];
+        if (s.patch_index == NO_TRIANGLE) {
+            continue;
+        }
+        if (s.patch_index == own_patch) {
+            shot = true;
+            continue;
+        }
+        let to_shooter = s.position - p;
+        // Only the shooter's front side emits.
+        let height = -dot(to_shooter, s.normal);
+        if (height <= 0.0) {
+            continue;
+        }
+        let r2 = dot(to_shooter, to_shooter);
+        let r = sqrt(r2);
+        let near = r < NEAR_FIELD * s.radius;
+        let cos_i = dot(texel.normal, to_shooter) / r;
+        if (!near && cos_i <= 0.0) {
+            continue;
+        }
+
+        // Visibility from the shooter's hemicube. A receiver below the
+        // hemicube's origin is too close to the shooter's plane for anything
+        // to come between them.
+        let m = basis(s.normal);
+        let from_origin = p - hemicube_origin(s);
+        let local = vec3f(dot(from_origin, m[0]), dot(from_origin, m[1]), dot(from_origin, m[2]));
+        if (local.z > params.near) {
+            let distance = length(local);
+            let face = hemicube_face_of(local);
+            let uvw = hemicube_face(local, face);
+            let view = hemicube_viewport(k, face, size, params.tiles_per_row);
+            let pixel = view.xy + vec2f(uvw.x * 0.5 + 0.5, 0.5 - uvw.y * 0.5) * view.zw;
+            let xy = vec2<i32>(clamp(floor(pixel), view.xy, view.xy + view.zw - 1.0));
+            let stored = textureLoad(depth, xy, 0) * params.far;
+            // A hemicube texel spans about 2/S radians: a tilted receiver's
+            // depth changes by d·(2/S)·tan θ across it.
+            let cos_f = abs(dot(texel.face_normal, from_origin)) / distance;
+            let tangent = min(sqrt(max(1.0 - cos_f * cos_f, 0.0)) / max(cos_f, 1e-4), params.max_slope);
+            let bias = distance * (2.0 / size) * (1.0 + tangent) + params.receiver_offset;
+            if (distance > stored + bias) {
+                continue;
+            }
+        }
+
+        var form_factor: f32;
+        if (near) {
+            // Close to the shooter the disc formula fails (a floor texel
+            // next to a wall would miss most of the wall): integrate its
+            // parallelogram exactly, scaled to the patch's true area.
+            let corners = array<vec3f, 4>(
+                s.rect_centre - s.half_u - s.half_v,
+                s.rect_centre + s.half_u - s.half_v,
+                s.rect_centre + s.half_u + s.half_v,
+                s.rect_centre - s.half_u + s.half_v,
+            );
+            form_factor = polygon_form_factor(p, texel.normal, corners) * min(s.area / max(s.rect_area, 1e-30), 1.0);
+        } else {
+            let cos_j = height / r;
+            form_factor = cos_i * cos_j * s.area / (PI * r2);
+        }
+        gathered += form_factor * s.radiance;
+    }
+    lightmap[i] += vec4f(gathered, 0.0);
+    var remaining = unshot[i].rgb;
+    if (shot) {
+        remaining = vec3f(0.0);
+    }
+    unshot[i] = vec4f(remaining + texel.albedo * gathered, luminance(gathered) * texel.area);
+}

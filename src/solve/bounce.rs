@@ -1,0 +1,561 @@
+//! Progressive refinement for surfaces (design notes, algorithm step 4; the
+//! seed's section 3.2 after Coombe, Harris & Lastra 2004; Cohen et al. 1988
+//! for progressive refinement and the ambient term).
+//!
+//! Each batch: sum every patch's unshot power Σ ΔL·A on the GPU
+//! (`solve_patch_power`), pick the K largest (`solve_select`), render a
+//! hemicube depth map from each (`solve_hemicube`), and let every texel
+//! gather from the K shooters with the seed's bounded form factor
+//! (`solve_shoot`). Only a 64-byte summary comes back per batch, to decide
+//! whether to stop and to record the convergence trace.
+//!
+//! A run stopped by a budget still answers honestly: the light not yet shot
+//! is spread as an ambient term (Cohen et al.'s, scaled by the measured share
+//! of shot light the scene catches), and the report says how much it was.
+
+use std::time::Instant;
+
+use anyhow::Result;
+use bytemuck::{Pod, Zeroable};
+use serde::{Deserialize, Serialize};
+
+use super::patches::Patches;
+use crate::gpu::{self, Gpu, Shader, read_buffer};
+use crate::scene::Scene;
+use crate::texelize::TexelSet;
+
+/// Shooter slots per batch (`MAX_SHOOTERS` in solve_shoot.wgsl).
+pub const MAX_SHOOTERS: u32 = 64;
+
+/// Options of the bounce pass, with their defaults.
+#[derive(Clone, Debug)]
+pub struct BounceOptions {
+    /// Stop when the unshot power falls below this fraction of the power put in.
+    pub tolerance: f64,
+    /// Stop after this many shots.
+    pub max_shots: Option<u64>,
+    /// Stop after this many seconds of bouncing.
+    pub max_seconds: Option<f64>,
+    /// About how many shooter patches to group the texels into.
+    pub patches: u32,
+    /// Shooters per GPU batch (at most 64).
+    pub shooters_per_batch: u32,
+    /// Hemicube face width in texels.
+    pub hemicube_size: u32,
+}
+
+impl Default for BounceOptions {
+    fn default() -> Self {
+        BounceOptions {
+            tolerance: 0.002,
+            max_shots: None,
+            max_seconds: None,
+            patches: 1024,
+            shooters_per_batch: 32,
+            hemicube_size: 128,
+        }
+    }
+}
+
+/// One point of the convergence trace, recorded before each batch.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct TracePoint {
+    /// Seconds since the bounce pass started.
+    pub seconds: f64,
+    /// Shots taken so far.
+    pub shots: u64,
+    /// Unshot power over the power put in (luminance).
+    pub unshot_fraction: f64,
+    /// Estimated relative error of the mean lightmap value: the ambient
+    /// term for the unshot light over the mean gathered so far.
+    pub error_estimate: f64,
+}
+
+/// What the bounce pass did, for the report.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct BounceStats {
+    pub patches: usize,
+    pub shots: u64,
+    pub batches: u64,
+    pub seconds: f64,
+    /// "converged", "max shots" or "max time".
+    pub stopped_by: String,
+    /// Unshot power over the power put in when it stopped.
+    pub unshot_fraction: f64,
+    /// Share of the shot power that landed on the scene (the rest escaped).
+    pub closure: f64,
+    /// Ambient term added to every texel for the light not yet shot, L_lm RGB.
+    pub ambient: [f32; 3],
+    pub trace: Vec<TracePoint>,
+}
+
+/// Mirrors `BounceParams` in common.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct BounceParams {
+    texel_count: u32,
+    patch_count: u32,
+    shooter_count: u32,
+    row_stride: u32,
+    face_size: f32,
+    tiles_per_row: u32,
+    far: f32,
+    near: f32,
+    receiver_offset: f32,
+    max_slope: f32,
+    _pad: [u32; 2],
+}
+
+/// Mirrors `Shooter` in common.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable, Default)]
+struct Shooter {
+    position: [f32; 3],
+    area: f32,
+    normal: [f32; 3],
+    patch: u32,
+    radiance: [f32; 3],
+    radius: f32,
+    rect_centre: [f32; 3],
+    lift: f32,
+    half_u: [f32; 3],
+    rect_area: f32,
+    half_v: [f32; 3],
+    _pad: u32,
+}
+
+/// Mirrors `BounceStats` in common.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable, Default, Debug)]
+struct GpuStats {
+    unshot: [f32; 4],
+    received: [f32; 4],
+    shot: [f32; 4],
+    shooters: u32,
+    _pad: [u32; 3],
+}
+
+fn luminance(c: [f64; 3]) -> f64 {
+    crate::report::luminance(c)
+}
+
+/// Everything the bounce pass binds, created once.
+struct Resources {
+    params: wgpu::Buffer,
+    texels: wgpu::Buffer,
+    texel_patch: wgpu::Buffer,
+    patches: wgpu::Buffer,
+    members: wgpu::Buffer,
+    unshot: wgpu::Buffer,
+    lightmap: wgpu::Buffer,
+    patch_power: wgpu::Buffer,
+    chosen: wgpu::Buffer,
+    shooters: wgpu::Buffer,
+    stats: wgpu::Buffer,
+    depth_view: wgpu::TextureView,
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    index_count: u32,
+}
+
+struct Pipelines {
+    power: (wgpu::ComputePipeline, wgpu::BindGroup),
+    select: (wgpu::ComputePipeline, wgpu::BindGroup),
+    hemicube: (wgpu::RenderPipeline, wgpu::BindGroup),
+    shoot: (wgpu::ComputePipeline, wgpu::BindGroup),
+}
+
+/// Shoots until converged or out of budget. `lightmap` holds L_lm after the
+/// direct pass and is updated in place; returns what happened.
+#[allow(clippy::too_many_arguments)]
+pub fn run(
+    gpu: &Gpu,
+    scene: &Scene,
+    texels: &TexelSet,
+    patches: &Patches,
+    lightmap: &mut [[f32; 3]],
+    texels_per_unit: f32,
+    options: &BounceOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<BounceStats> {
+    let start = Instant::now();
+    // Initial unshot radiosity: reflected direct light plus emission.
+    let unshot: Vec<[f32; 4]> = texels
+        .texels
+        .iter()
+        .zip(lightmap.iter())
+        .map(|(t, l)| {
+            let [r, g, b] = [0, 1, 2].map(|c| t.albedo[c] * l[c] + t.emission[c]);
+            [r, g, b, 0.0]
+        })
+        .collect();
+    let power_in = texels
+        .texels
+        .iter()
+        .zip(&unshot)
+        .map(|(t, u)| luminance([u[0] as f64, u[1] as f64, u[2] as f64]) * t.area as f64)
+        .sum::<f64>();
+    let total_area: f64 = texels.total_area();
+    let mean_albedo = {
+        let mut sum = [0.0f64; 3];
+        for t in &texels.texels {
+            for (s, a) in sum.iter_mut().zip(t.albedo) {
+                *s += a as f64 * t.area as f64;
+            }
+        }
+        sum.map(|s| s / total_area.max(1e-30))
+    };
+    // Σ L_lm·A so far (luminance), to turn the ambient term into a relative error.
+    let mut gathered: f64 = texels
+        .texels
+        .iter()
+        .zip(lightmap.iter())
+        .map(|(t, l)| luminance([l[0] as f64, l[1] as f64, l[2] as f64]) * t.area as f64)
+        .sum();
+
+    let (centre, radius) = super::direct::bounding_sphere(scene);
+    let _ = centre;
+    let shooter_count = options.shooters_per_batch.clamp(1, MAX_SHOOTERS);
+    let face = options.hemicube_size.clamp(16, 2048);
+    let tiles_per_row = ((gpu.limits.max_texture_dimension_2d / (3 * face)).max(1)).min(shooter_count);
+    let tile_rows = shooter_count.div_ceil(tiles_per_row);
+    let texel_world = 1.0 / texels_per_unit.max(1e-30);
+    let (groups_x, groups_y) = gpu.dispatch_size(texels.texels.len() as u32, 64);
+    let (patch_groups_x, patch_groups_y) = gpu.dispatch_size(patches.patches.len() as u32, 64);
+    let params = BounceParams {
+        texel_count: texels.texels.len() as u32,
+        patch_count: patches.patches.len() as u32,
+        shooter_count,
+        row_stride: groups_x * 64,
+        face_size: face as f32,
+        tiles_per_row,
+        far: 2.0 * radius,
+        near: (radius * 1e-5).max(texel_world * 1e-3),
+        // Half a lightmap texel: off the surface, well inside any occluder.
+        receiver_offset: 0.5 * texel_world,
+        max_slope: 10.0,
+        _pad: [0; 2],
+    };
+    let patch_params = BounceParams { row_stride: patch_groups_x * 64, ..params };
+
+    let resources = resources(gpu, scene, texels, patches, &unshot, lightmap, params, face, tiles_per_row, tile_rows);
+    let patch_params_buffer = gpu.uniform_buffer("solve_patch_power params", &patch_params);
+    let pipelines = pipelines(gpu, &resources, &patch_params_buffer);
+
+    let mut shots = 0u64;
+    let mut batches = 0u64;
+    let mut trace = Vec::new();
+    let mut shot_total = 0.0f64;
+    let mut received_total = 0.0f64;
+    let mut stopped_by = "converged".to_string();
+    let mut last;
+    loop {
+        // Sum and select on the GPU; read back only the totals.
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&pipelines.power.0);
+            pass.set_bind_group(0, &pipelines.power.1, &[]);
+            pass.dispatch_workgroups(patch_groups_x, patch_groups_y, 1);
+            pass.set_pipeline(&pipelines.select.0);
+            pass.set_bind_group(0, &pipelines.select.1, &[]);
+            pass.dispatch_workgroups(1, 1, 1);
+        }
+        gpu.queue.submit([encoder.finish()]);
+        let stats: GpuStats = read_buffer(gpu, &resources.stats, 1)?[0];
+        received_total += stats.received[3] as f64;
+        gathered += stats.received[3] as f64;
+        last = stats;
+        let unshot_power = stats.unshot[3] as f64;
+        let unshot_fraction = if power_in > 0.0 { unshot_power / power_in } else { 0.0 };
+        let closure = if shot_total > 0.0 { (received_total / shot_total).min(1.0) } else { 1.0 };
+        let ambient = ambient_term(stats.unshot, closure, mean_albedo, total_area);
+        let error_estimate = if gathered > 0.0 { luminance(ambient) * total_area / gathered } else { 0.0 };
+        trace.push(TracePoint { seconds: start.elapsed().as_secs_f64(), shots, unshot_fraction, error_estimate });
+
+        if unshot_fraction <= options.tolerance || stats.shooters == 0 {
+            break;
+        }
+        if options.max_shots.is_some_and(|max| shots >= max) {
+            stopped_by = "max shots".into();
+            break;
+        }
+        if options.max_seconds.is_some_and(|max| start.elapsed().as_secs_f64() >= max) {
+            stopped_by = "max time".into();
+            break;
+        }
+
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        render_hemicubes(&mut encoder, &pipelines, &resources, shooter_count, face, tiles_per_row);
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&pipelines.shoot.0);
+            pass.set_bind_group(0, &pipelines.shoot.1, &[]);
+            pass.dispatch_workgroups(groups_x, groups_y, 1);
+        }
+        gpu.queue.submit([encoder.finish()]);
+        shots += stats.shooters as u64;
+        shot_total += stats.shot[3] as f64;
+        batches += 1;
+        // Progress in "orders of magnitude converged" towards the tolerance.
+        let goal = (1.0 / options.tolerance.max(1e-12)).ln();
+        let done = ((1.0 / unshot_fraction.max(1e-300)).ln() / goal * 1000.0).clamp(0.0, 1000.0);
+        progress(done as u64, 1000);
+    }
+
+    let values: Vec<[f32; 4]> = read_buffer(gpu, &resources.lightmap, texels.texels.len())?;
+    gpu.check("solve (bounce)")?;
+    let closure = if shot_total > 0.0 { (received_total / shot_total).min(1.0) } else { 1.0 };
+    let ambient = ambient_term(last.unshot, closure, mean_albedo, total_area).map(|a| a as f32);
+    for (out, v) in lightmap.iter_mut().zip(values) {
+        *out = [0, 1, 2].map(|c| v[c] + ambient[c]);
+    }
+    let unshot_fraction = trace.last().map_or(0.0, |t| t.unshot_fraction);
+    Ok(BounceStats {
+        patches: patches.patches.len(),
+        shots,
+        batches,
+        seconds: start.elapsed().as_secs_f64(),
+        stopped_by,
+        unshot_fraction,
+        closure,
+        ambient,
+        trace,
+    })
+}
+
+/// The light still unshot, spread evenly over the scene as incident
+/// radiance (L_lm): U·f / (A (1 − ρ̄ f)) per channel, where f is the share of
+/// shot light the scene catches (1 in a closed room, Cohen et al.'s case).
+fn ambient_term(unshot: [f32; 4], closure: f64, albedo: [f64; 3], area: f64) -> [f64; 3] {
+    if area <= 0.0 {
+        return [0.0; 3];
+    }
+    [0, 1, 2].map(|c| {
+        let reflect = (albedo[c] * closure).min(0.999);
+        unshot[c].max(0.0) as f64 * closure / (area * (1.0 - reflect))
+    })
+}
+
+#[allow(clippy::too_many_arguments)]
+fn resources(
+    gpu: &Gpu,
+    scene: &Scene,
+    texels: &TexelSet,
+    patches: &Patches,
+    unshot: &[[f32; 4]],
+    lightmap: &[[f32; 3]],
+    params: BounceParams,
+    face: u32,
+    tiles_per_row: u32,
+    tile_rows: u32,
+) -> Resources {
+    let none = wgpu::BufferUsages::empty();
+    let (vertices, indices, index_count) = super::direct::caster_buffers(gpu, scene);
+    let depth = gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("solve_hemicube depth"),
+        size: wgpu::Extent3d { width: 3 * face * tiles_per_row, height: face * tile_rows, depth_or_array_layers: 1 },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Depth32Float,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        view_formats: &[],
+    });
+    let lightmap4: Vec<[f32; 4]> = lightmap.iter().map(|l| [l[0], l[1], l[2], 0.0]).collect();
+    Resources {
+        params: gpu.uniform_buffer("solve_shoot params", &params),
+        texels: gpu.storage_buffer("solve_shoot texels", &texels.texels, none),
+        texel_patch: gpu.storage_buffer("solve_shoot texel patches", &patches.texel_patch, none),
+        patches: gpu.storage_buffer("solve_select patches", &patches.patches, none),
+        members: gpu.storage_buffer("solve_patch_power members", &patches.members, none),
+        unshot: gpu.storage_buffer("solve_shoot unshot", unshot, none),
+        lightmap: gpu.storage_buffer("solve_shoot lightmap", &lightmap4, wgpu::BufferUsages::COPY_SRC),
+        patch_power: gpu.storage_buffer("solve_patch_power power", &vec![[0f32; 4]; patches.patches.len()], none),
+        chosen: gpu.storage_buffer("solve_select chosen", &vec![0u32; patches.patches.len()], none),
+        shooters: gpu.storage_buffer("solve_select shooters", &[Shooter::default(); MAX_SHOOTERS as usize], none),
+        stats: gpu.storage_buffer("solve_select stats", &[GpuStats::default()], wgpu::BufferUsages::COPY_SRC),
+        depth_view: depth.create_view(&Default::default()),
+        vertices,
+        indices,
+        index_count,
+    }
+}
+
+fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines {
+    let compute = wgpu::ShaderStages::COMPUTE;
+    let layout = |label: &str, entries: &[wgpu::BindGroupLayoutEntry]| {
+        gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries })
+    };
+
+    let power_layout = layout(
+        "solve_patch_power",
+        &[
+            // 0: BounceParams (patch count, dispatch stride)
+            gpu::uniform_entry(0, compute),
+            // 1: texels (areas), 2: patches, 3: patch members
+            gpu::storage_entry(1, true, compute),
+            gpu::storage_entry(2, true, compute),
+            gpu::storage_entry(3, true, compute),
+            // 4: unshot radiance per texel, 5: per-patch power (written)
+            gpu::storage_entry(4, true, compute),
+            gpu::storage_entry(5, false, compute),
+        ],
+    );
+    let power_group =
+        gpu::bind_buffers(gpu, "solve_patch_power", &power_layout, &[patch_params, &r.texels, &r.patches, &r.members, &r.unshot, &r.patch_power]);
+
+    let select_layout = layout(
+        "solve_select",
+        &[
+            // 0: BounceParams, 1: patches, 2: per-patch power
+            gpu::uniform_entry(0, compute),
+            gpu::storage_entry(1, true, compute),
+            gpu::storage_entry(2, true, compute),
+            // 3: chosen flags, 4: shooters, 5: totals (all written)
+            gpu::storage_entry(3, false, compute),
+            gpu::storage_entry(4, false, compute),
+            gpu::storage_entry(5, false, compute),
+        ],
+    );
+    let select_group =
+        gpu::bind_buffers(gpu, "solve_select", &select_layout, &[&r.params, &r.patches, &r.patch_power, &r.chosen, &r.shooters, &r.stats]);
+
+    let vertex = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
+    let hemicube_layout = layout(
+        "solve_hemicube",
+        &[
+            // 0: BounceParams (near, far), 1: shooters
+            gpu::uniform_entry(0, vertex),
+            gpu::storage_entry(1, true, wgpu::ShaderStages::VERTEX),
+        ],
+    );
+    let hemicube_group = gpu::bind_buffers(gpu, "solve_hemicube", &hemicube_layout, &[&r.params, &r.shooters]);
+
+    let shoot_layout = layout(
+        "solve_shoot",
+        &[
+            // 0: BounceParams, 1: texels, 2: patch of each texel, 3: shooters
+            gpu::uniform_entry(0, compute),
+            gpu::storage_entry(1, true, compute),
+            gpu::storage_entry(2, true, compute),
+            gpu::storage_entry(3, true, compute),
+            // 4: lightmap L_lm, 5: unshot ΔL (both accumulated)
+            gpu::storage_entry(4, false, compute),
+            gpu::storage_entry(5, false, compute),
+            // 6: the batch's hemicube depth atlas
+            wgpu::BindGroupLayoutEntry {
+                binding: 6,
+                visibility: compute,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Depth,
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+                count: None,
+            },
+        ],
+    );
+    let shoot_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("solve_shoot"),
+        layout: &shoot_layout,
+        entries: &[
+            wgpu::BindGroupEntry { binding: 0, resource: r.params.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 1, resource: r.texels.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 2, resource: r.texel_patch.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 3, resource: r.shooters.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 4, resource: r.lightmap.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 5, resource: r.unshot.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 6, resource: wgpu::BindingResource::TextureView(&r.depth_view) },
+        ],
+    });
+
+    let module = gpu.shader(Shader::SolveHemicube);
+    let hemicube_pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("solve_hemicube"),
+        bind_group_layouts: &[Some(&hemicube_layout)],
+        immediate_size: 0,
+    });
+    let hemicube = gpu.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("solve_hemicube"),
+        layout: Some(&hemicube_pipeline_layout),
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vs_hemicube"),
+            compilation_options: Default::default(),
+            buffers: &[Some(wgpu::VertexBufferLayout {
+                array_stride: 12,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &wgpu::vertex_attr_array![0 => Float32x3],
+            })],
+        },
+        primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: wgpu::TextureFormat::Depth32Float,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: &module,
+            entry_point: Some("fs_hemicube"),
+            compilation_options: Default::default(),
+            targets: &[],
+        }),
+        multiview_mask: None,
+        cache: None,
+    });
+
+    Pipelines {
+        power: (gpu.compute_pipeline(Shader::SolvePatchPower, "main", &[&power_layout]), power_group),
+        select: (gpu.compute_pipeline(Shader::SolveSelect, "main", &[&select_layout]), select_group),
+        hemicube: (hemicube, hemicube_group),
+        shoot: (gpu.compute_pipeline(Shader::SolveShoot, "main", &[&shoot_layout]), shoot_group),
+    }
+}
+
+/// The five faces of every shooter's hemicube, each into its viewport of
+/// the depth atlas (the same layout `hemicube_viewport` in common.wgsl reads).
+fn render_hemicubes(
+    encoder: &mut wgpu::CommandEncoder,
+    pipelines: &Pipelines,
+    r: &Resources,
+    shooters: u32,
+    face: u32,
+    tiles_per_row: u32,
+) {
+    let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some("solve_hemicube"),
+        color_attachments: &[],
+        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+            view: &r.depth_view,
+            depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
+            stencil_ops: None,
+        }),
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    });
+    pass.set_pipeline(&pipelines.hemicube.0);
+    pass.set_bind_group(0, &pipelines.hemicube.1, &[]);
+    pass.set_vertex_buffer(0, r.vertices.slice(..));
+    pass.set_index_buffer(r.indices.slice(..), wgpu::IndexFormat::Uint32);
+    let s = face as f32;
+    for slot in 0..shooters {
+        let tile = [(slot % tiles_per_row) as f32 * 3.0 * s, (slot / tiles_per_row) as f32 * s];
+        let views = [
+            [tile[0], tile[1], s, s],
+            [tile[0] + s, tile[1], s, 0.5 * s],
+            [tile[0] + s, tile[1] + 0.5 * s, s, 0.5 * s],
+            [tile[0] + 2.0 * s, tile[1], s, 0.5 * s],
+            [tile[0] + 2.0 * s, tile[1] + 0.5 * s, s, 0.5 * s],
+        ];
+        for (f, [x, y, w, h]) in views.into_iter().enumerate() {
+            pass.set_viewport(x, y, w, h, 0.0, 1.0);
+            let instance = slot * 5 + f as u32;
+            pass.draw_indexed(0..r.index_count, 0, instance..instance + 1);
+        }
+    }
+}

@@ -1,0 +1,246 @@
+//! Shooter patches: groups of texels that shoot their unshot light together
+//! (design notes, algorithm step 4). The seed mipmaps the radiosity texture
+//! to 32×32, but a mip texel mixes unrelated charts; here a patch never
+//! leaves its chart: texels are grouped by chart, by a square cell of the
+//! atlas (charts are continuous, so a cell is a compact piece of surface),
+//! and by the major axis of their normal (so a patch stays nearly flat).
+//!
+//! Each patch also carries the parallelogram its atlas cell maps to in the
+//! world (a least-squares affine fit of its texels' positions against their
+//! atlas coordinates), so receivers close to it can use the exact
+//! point-to-polygon form factor instead of the far-field disc formula.
+
+use bytemuck::{Pod, Zeroable};
+use glam::{DVec3, Vec3};
+
+use crate::texelize::TexelSet;
+
+/// A patch as the GPU sees it. Mirrors `struct Patch` in common.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct Patch {
+    /// Area-weighted centroid of its texels, world space.
+    pub position: [f32; 3],
+    /// Total world area, m².
+    pub area: f32,
+    /// Unit area-weighted mean shading normal.
+    pub normal: [f32; 3],
+    /// First entry of the patch in `Patches::members`.
+    pub first: u32,
+    /// Centre of the patch's parallelogram.
+    pub rect_centre: [f32; 3],
+    /// Number of member texels.
+    pub count: u32,
+    /// Half of the parallelogram's first side.
+    pub half_u: [f32; 3],
+    /// How far the patch's own surface rises above its centroid's tangent
+    /// plane (curved patches); the hemicube starts this far above it.
+    pub lift: f32,
+    /// Half of the parallelogram's second side.
+    pub half_v: [f32; 3],
+    /// Distance from the parallelogram's centre to its farthest corner.
+    pub radius: f32,
+}
+
+/// All patches, and which texels belong to which.
+#[derive(Clone, Debug, Default)]
+pub struct Patches {
+    pub patches: Vec<Patch>,
+    /// Texel indices (into `TexelSet::texels`) grouped by patch.
+    pub members: Vec<u32>,
+    /// The patch of every texel.
+    pub texel_patch: Vec<u32>,
+    /// Side of the atlas cell used, texels.
+    pub cell: u32,
+}
+
+fn normal_axis(n: Vec3) -> u32 {
+    let a = n.abs();
+    if a.x >= a.y && a.x >= a.z {
+        if n.x >= 0.0 { 0 } else { 1 }
+    } else if a.y >= a.z {
+        if n.y >= 0.0 { 2 } else { 3 }
+    } else if n.z >= 0.0 {
+        4
+    } else {
+        5
+    }
+}
+
+/// Groups `texels` into about `target` patches. `texel_size` is the world
+/// size of one lightmap texel (1 / texels per unit).
+pub fn build(texels: &TexelSet, target: u32, texel_size: f32) -> Patches {
+    let n = texels.texels.len();
+    if n == 0 {
+        return Patches::default();
+    }
+    let cell = ((n as f64 / target.max(1) as f64).sqrt().round() as u32).max(1);
+    let key = |i: usize| {
+        let t = &texels.texels[i];
+        let (x, y) = (t.x(texels.width), t.y(texels.width));
+        (t.chart, y / cell, x / cell, normal_axis(t.normal()))
+    };
+    let mut order: Vec<u32> = (0..n as u32).collect();
+    order.sort_by_key(|&i| (key(i as usize), i));
+
+    let mut patches = Vec::new();
+    let mut texel_patch = vec![0u32; n];
+    let mut start = 0;
+    while start < n {
+        let k = key(order[start] as usize);
+        let mut end = start + 1;
+        while end < n && key(order[end] as usize) == k {
+            end += 1;
+        }
+        for &i in &order[start..end] {
+            texel_patch[i as usize] = patches.len() as u32;
+        }
+        patches.push(patch(texels, &order[start..end], start as u32, texel_size));
+        start = end;
+    }
+    Patches { patches, members: order, texel_patch, cell }
+}
+
+fn patch(texels: &TexelSet, members: &[u32], first: u32, texel_size: f32) -> Patch {
+    let mut area = 0.0f64;
+    let mut centroid = DVec3::ZERO;
+    let mut normal = Vec3::ZERO;
+    for &i in members {
+        let t = &texels.texels[i as usize];
+        area += t.area as f64;
+        centroid += t.position().as_dvec3() * t.area as f64;
+        normal += t.normal() * t.area.max(1e-30);
+    }
+    let first_texel = &texels.texels[members[0] as usize];
+    let centroid = if area > 0.0 { (centroid / area).as_vec3() } else { first_texel.position() };
+    let normal = normal.try_normalize().unwrap_or(Vec3::Y);
+    let lift = members
+        .iter()
+        .map(|&i| (texels.texels[i as usize].position() - centroid).dot(normal))
+        .fold(0.0f32, f32::max);
+
+    // Affine fit P(x, y) ≈ c + U (x − x̄) + V (y − ȳ), from the texels that
+    // lie wholly on the surface (border texels take an inset position, not
+    // the image of their atlas cell).
+    let largest = members.iter().map(|&i| texels.texels[i as usize].area).fold(0.0f32, f32::max);
+    let whole: Vec<u32> = members.iter().copied().filter(|&i| texels.texels[i as usize].area >= 0.9 * largest).collect();
+    let (c, u, v) = affine_fit(texels, if whole.len() >= 3 { &whole } else { members })
+        .or_else(|| affine_fit(texels, members))
+        .unwrap_or_else(|| {
+            // A single texel, row or column: one texel's sides in the tangent plane.
+            let t = normal.as_dvec3().any_orthonormal_vector() * texel_size as f64;
+            (centroid.as_dvec3(), t, normal.as_dvec3().cross(t))
+        });
+    // The parallelogram spans every member's position, half a texel beyond
+    // the outermost ones: for border texels (inset half a texel) that is the
+    // chart's edge, so neighbouring patches tile the surface.
+    let gram = [u.dot(u), u.dot(v), v.dot(v)];
+    let det = gram[0] * gram[2] - gram[1] * gram[1];
+    let (mut lo_a, mut hi_a, mut lo_b, mut hi_b) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for &i in members {
+        let d = texels.texels[i as usize].position().as_dvec3() - c;
+        let (du, dv) = (d.dot(u), d.dot(v));
+        let a = (du * gram[2] - dv * gram[1]) / det;
+        let b = (dv * gram[0] - du * gram[1]) / det;
+        (lo_a, hi_a, lo_b, hi_b) = (lo_a.min(a), hi_a.max(a), lo_b.min(b), hi_b.max(b));
+    }
+    let rect_centre = c + u * ((lo_a + hi_a) * 0.5) + v * ((lo_b + hi_b) * 0.5);
+    let half_u = u * ((hi_a - lo_a) * 0.5 + 0.5);
+    let half_v = v * ((hi_b - lo_b) * 0.5 + 0.5);
+    Patch {
+        position: centroid.to_array(),
+        area: area as f32,
+        normal: normal.to_array(),
+        first,
+        rect_centre: rect_centre.as_vec3().to_array(),
+        count: members.len() as u32,
+        half_u: half_u.as_vec3().to_array(),
+        lift,
+        half_v: half_v.as_vec3().to_array(),
+        radius: (half_u.length() + half_v.length()) as f32,
+    }
+}
+
+/// Least-squares P(x, y) ≈ c + U (x − x̄) + V (y − ȳ) over `members`:
+/// (c, U, V), or `None` when they do not span two atlas directions.
+fn affine_fit(texels: &TexelSet, members: &[u32]) -> Option<(DVec3, DVec3, DVec3)> {
+    let width = texels.width;
+    let count = members.len() as f64;
+    let (mut mx, mut my, mut mp) = (0.0f64, 0.0f64, DVec3::ZERO);
+    for &i in members {
+        let t = &texels.texels[i as usize];
+        mx += t.x(width) as f64;
+        my += t.y(width) as f64;
+        mp += t.position().as_dvec3();
+    }
+    let (mx, my, mp) = (mx / count, my / count, mp / count);
+    let (mut sxx, mut sxy, mut syy, mut sxp, mut syp) = (0.0, 0.0, 0.0, DVec3::ZERO, DVec3::ZERO);
+    for &i in members {
+        let t = &texels.texels[i as usize];
+        let dx = t.x(width) as f64 - mx;
+        let dy = t.y(width) as f64 - my;
+        let dp = t.position().as_dvec3() - mp;
+        sxx += dx * dx;
+        sxy += dx * dy;
+        syy += dy * dy;
+        sxp += dp * dx;
+        syp += dp * dy;
+    }
+    let det = sxx * syy - sxy * sxy;
+    if !(sxx > 0.0 && syy > 0.0 && det > 1e-9 * sxx * syy) {
+        return None;
+    }
+    let u = (sxp * syy - syp * sxy) / det;
+    let v = (syp * sxx - sxp * sxy) / det;
+    (u.cross(v).length() > 0.0).then_some((mp, u, v))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::texelize::Texel;
+
+    /// A flat 8×8-texel chart of 0.1 m texels in the XZ plane.
+    fn grid() -> TexelSet {
+        let mut texels = Vec::new();
+        for y in 0..8u32 {
+            for x in 0..8u32 {
+                texels.push(Texel {
+                    position: [x as f32 * 0.1, 0.0, y as f32 * 0.1],
+                    area: 0.01,
+                    normal: [0.0, 1.0, 0.0],
+                    face_normal: [0.0, 1.0, 0.0],
+                    index: x + y * 8,
+                    ..Default::default()
+                });
+            }
+        }
+        TexelSet { width: 8, height: 8, texels }
+    }
+
+    #[test]
+    fn patches_cover_every_texel_once_and_keep_area() {
+        let texels = grid();
+        let patches = build(&texels, 4, 0.1);
+        assert_eq!(patches.patches.len(), 4);
+        let mut seen = patches.members.clone();
+        seen.sort();
+        assert_eq!(seen, (0..64).collect::<Vec<_>>());
+        let area: f32 = patches.patches.iter().map(|p| p.area).sum();
+        assert!((area - 0.64).abs() < 1e-5);
+    }
+
+    #[test]
+    fn a_full_cell_maps_to_its_exact_square() {
+        let texels = grid();
+        let patches = build(&texels, 4, 0.1);
+        let p = &patches.patches[0];
+        // Texels 0..4 in x and y: centres 0..0.3, so the cell spans −0.05..0.35.
+        assert!((Vec3::from(p.rect_centre) - Vec3::new(0.15, 0.0, 0.15)).length() < 1e-5);
+        assert!((Vec3::from(p.half_u).length() - 0.2).abs() < 1e-5);
+        assert!((Vec3::from(p.half_v).length() - 0.2).abs() < 1e-5);
+        let rect_area = 4.0 * Vec3::from(p.half_u).cross(Vec3::from(p.half_v)).length();
+        assert!((rect_area - p.area).abs() < 1e-5);
+        assert_eq!(p.lift, 0.0);
+    }
+}
