@@ -229,9 +229,7 @@ impl Bvh {
         let mut t_max = t_max;
         let mut stack = [0u32; STACK];
         let mut len = 0usize;
-        if Self::box_entry(&self.nodes[0], origin, inv, t_max).is_none() {
-            return None;
-        }
+        Self::box_entry(&self.nodes[0], origin, inv, t_max)?;
         let mut current = 0u32;
         loop {
             let node = &self.nodes[current as usize];

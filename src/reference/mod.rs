@@ -38,13 +38,15 @@
 //! # Method
 //! Unidirectional path tracing (Kajiya 1986) with next-event estimation to
 //! the environment at every vertex, combined with cosine-weighted
-//! hemisphere sampling by multiple importance sampling with the power
+//! hemisphere sampling by multiple importance sampling with the balance
 //! heuristic (Veach and Guibas, "Optimally Combining Sampling Techniques for
 //! Monte Carlo Rendering", SIGGRAPH 1995; Veach, PhD thesis, 1997, ch. 9).
 //! The environment is importance-sampled at full resolution by pixel
 //! luminance × solid angle from a marginal/conditional 2-D table, uniformly
 //! within the pixel in (φ, cos θ) (Pharr, Jakob and Humphreys, *Physically
-//! Based Rendering*, 3rd ed., §13.6.7 and §14.2.4), so a small, very bright
+//! Based Rendering*, 3rd ed., §13.6.7 and §14.2.4), with the map's mean
+//! luminance subtracted from the weights and left to cosine sampling (MIS
+//! compensation, Karlík et al., SIGGRAPH Asia 2019), so a small, very bright
 //! sun is found by nearly every light sample. Russian roulette (with the hit
 //! surface's largest albedo channel as survival probability) starts after
 //! three surface interactions; `max_bounces` is a hard cap.
@@ -444,7 +446,7 @@ pub fn surface_points(scene: &Scene, count: usize, seed: u64) -> Vec<SurfacePoin
         total += 0.5 * t.e1.cross(t.e2).length();
         cumulative.push(total);
     }
-    if count == 0 || !(total > 0.0) || !total.is_finite() {
+    if count == 0 || !total.is_finite() || total <= 0.0 {
         return Vec::new();
     }
     let mut rng = Rng::new(&[seed, u64::MAX]);

@@ -2,7 +2,7 @@
 //!
 //! At every vertex (the query point first, then each surface hit) the
 //! incident-light integral (1/π)∫L_in cos dω is estimated with two
-//! techniques combined by Veach's power heuristic (β = 2): a direction drawn
+//! techniques combined by Veach's balance heuristic: a direction drawn
 //! from the environment's importance table (next-event estimation, with a
 //! shadow ray) and a cosine-distributed direction. The cosine direction also
 //! continues the path: if it escapes it sees the environment (MIS-weighted);
@@ -20,10 +20,9 @@ use super::sampling::{Rng, cosine_hemisphere};
 /// Surface interactions after which Russian roulette starts.
 const ROULETTE_AFTER: u32 = 3;
 
-/// Power-heuristic weight of a technique with density `a` against one with `b`.
-fn power(a: f64, b: f64) -> f64 {
-    let (a2, b2) = (a * a, b * b);
-    if a2 + b2 > 0.0 { a2 / (a2 + b2) } else { 0.0 }
+/// Balance-heuristic weight of a technique with density `a` against one with `b`.
+fn balance(a: f64, b: f64) -> f64 {
+    if a + b > 0.0 { a / (a + b) } else { 0.0 }
 }
 
 impl Reference {
@@ -54,7 +53,7 @@ impl Reference {
                 {
                     let pdf_cos = cos * FRAC_1_PI;
                     // (cos/π)/pdf × weight
-                    let weight = pdf_cos / s.pdf * power(s.pdf, pdf_cos);
+                    let weight = pdf_cos / s.pdf * balance(s.pdf, pdf_cos);
                     result += beta * s.radiance * weight;
                 }
             }
@@ -66,7 +65,7 @@ impl Reference {
             let Some(hit) = self.bvh.closest(origin, direction, f64::INFINITY, skip) else {
                 if let Some(env) = env {
                     let weight = if nee {
-                        power(cos * FRAC_1_PI, env.pdf(direction))
+                        balance(cos * FRAC_1_PI, env.pdf(direction))
                     } else {
                         1.0
                     };
