@@ -18,6 +18,7 @@ pub mod gpu;
 pub mod import;
 pub mod output;
 pub mod progress;
+pub mod reference;
 pub mod report;
 pub mod scene;
 pub mod solve;

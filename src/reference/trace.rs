@@ -1,0 +1,109 @@
+//! The path tracer: one Monte Carlo sample of the lightmap value at a point.
+//!
+//! At every vertex (the query point first, then each surface hit) the
+//! incident-light integral (1/π)∫L_in cos dω is estimated with two
+//! techniques combined by Veach's balance heuristic: a direction drawn
+//! from the environment's importance table (next-event estimation, with a
+//! shadow ray) and a cosine-distributed direction. The cosine direction also
+//! continues the path: if it escapes it sees the environment (MIS-weighted);
+//! if it reaches the front of a surface it sees that surface's emission
+//! (unweighted: emitters are only found this way) plus its albedo times its
+//! own incident light, estimated recursively from the new vertex.
+
+use std::f64::consts::FRAC_1_PI;
+
+use glam::DVec3;
+
+use super::Reference;
+use super::sampling::{Rng, cosine_hemisphere};
+
+/// Surface interactions after which Russian roulette starts.
+const ROULETTE_AFTER: u32 = 3;
+
+/// Balance-heuristic weight of a technique with density `a` against one with `b`.
+fn balance(a: f64, b: f64) -> f64 {
+    if a + b > 0.0 { a / (a + b) } else { 0.0 }
+}
+
+impl Reference {
+    /// One path's estimate of L_lm at `position` (already offset off the
+    /// surface) for the unit receiving `normal`.
+    pub(super) fn sample_path(&self, position: DVec3, normal: DVec3, rng: &mut Rng) -> DVec3 {
+        let env = self.env.as_ref();
+        let nee = env.is_some_and(|e| e.can_sample());
+        let mut result = DVec3::ZERO;
+        let mut beta = DVec3::ONE;
+        let mut origin = position;
+        let mut normal = normal;
+        let mut skip: Option<u32> = None;
+        for bounce in 0..=self.max_bounces {
+            // Next-event estimation towards the environment.
+            if nee {
+                let env = env.unwrap();
+                let s = env.sample([
+                    rng.next_f64(),
+                    rng.next_f64(),
+                    rng.next_f64(),
+                    rng.next_f64(),
+                ]);
+                let cos = s.direction.dot(normal);
+                if cos > 0.0
+                    && s.pdf > 0.0
+                    && !self.bvh.occluded(origin, s.direction, f64::INFINITY, skip)
+                {
+                    let pdf_cos = cos * FRAC_1_PI;
+                    // (cos/π)/pdf × weight
+                    let weight = pdf_cos / s.pdf * balance(s.pdf, pdf_cos);
+                    result += beta * s.radiance * weight;
+                }
+            }
+            // Continue along a cosine-distributed direction.
+            let (direction, cos) = cosine_hemisphere(normal, rng.next_f64(), rng.next_f64());
+            if cos <= 0.0 {
+                break;
+            }
+            let Some(hit) = self.bvh.closest(origin, direction, f64::INFINITY, skip) else {
+                if let Some(env) = env {
+                    let weight = if nee {
+                        balance(cos * FRAC_1_PI, env.pdf(direction))
+                    } else {
+                        1.0
+                    };
+                    result += beta * env.radiance(direction) * weight;
+                }
+                break;
+            };
+            let tri = &self.bvh.triangles[hit.triangle as usize];
+            let material = &self.materials[tri.material as usize];
+            let mut n = tri.front_normal(hit.u, hit.v);
+            if direction.dot(n) >= 0.0 {
+                // The back side: black unless the material is double-sided.
+                if !material.double_sided {
+                    break;
+                }
+                n = -n;
+            }
+            result += beta * material.emission;
+            if bounce == self.max_bounces {
+                break;
+            }
+            let albedo = material.albedo;
+            let peak = albedo.max_element();
+            if peak <= 0.0 {
+                break;
+            }
+            beta *= albedo;
+            if bounce + 1 >= ROULETTE_AFTER {
+                let survive = peak.min(1.0);
+                if rng.next_f64() >= survive {
+                    break;
+                }
+                beta /= survive;
+            }
+            origin = tri.point(hit.u, hit.v) + n * self.surface_offset;
+            normal = n;
+            skip = Some(hit.triangle);
+        }
+        result
+    }
+}
