@@ -317,12 +317,42 @@ impl SceneBuilder {
     }
 }
 
-/// The scenes in `fixtures/`, by file stem.
-pub fn scenes() -> Vec<(&'static str, Vec<u8>)> {
-    vec![
-        ("sphere_on_ground", sphere_on_ground().to_glb()),
-        ("sphere", lone_sphere().to_glb()),
-    ]
+/// Every file in `fixtures/`: (file name, bytes). Scenes as `.glb`;
+/// environments with known answers as Radiance `.hdr` and OpenEXR.
+pub fn files() -> anyhow::Result<Vec<(String, Vec<u8>)>> {
+    use crate::environment::{EnvironmentMap, ExrPrecision, write_exr, write_hdr};
+    let mut files = vec![
+        (
+            "sphere_on_ground.glb".to_string(),
+            sphere_on_ground().to_glb(),
+        ),
+        ("sphere.glb".to_string(), lone_sphere().to_glb()),
+    ];
+    let maps = [
+        ("sky_constant", EnvironmentMap::constant([1.0; 3])),
+        ("sky_horizon", EnvironmentMap::horizon([1.0; 3])),
+        (
+            "sky_sun",
+            EnvironmentMap::sun_and_sky(
+                [0.3, 0.45, 0.8],
+                [0.4, 0.6, 0.3],
+                1e4,
+                0.5f32.to_radians(),
+            ),
+        ),
+    ];
+    let dir = std::env::temp_dir().join(format!("bake-fixtures-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    for (name, map) in maps {
+        let hdr = dir.join(format!("{name}.hdr"));
+        write_hdr(&map, &hdr)?;
+        files.push((format!("{name}.hdr"), std::fs::read(&hdr)?));
+        let exr = dir.join(format!("{name}.exr"));
+        write_exr(&map, &exr, ExrPrecision::Float, false)?;
+        files.push((format!("{name}.exr"), std::fs::read(&exr)?));
+    }
+    std::fs::remove_dir_all(&dir)?;
+    Ok(files)
 }
 
 /// A white-ish sphere of radius 1 floating 0.5 m above a 10×10 m ground.

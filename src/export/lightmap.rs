@@ -177,7 +177,8 @@ mod tests {
         assert_eq!(linear_to_srgb8(0.0), 0);
         assert_eq!(linear_to_srgb8(1.0), 255);
         assert_eq!(linear_to_srgb8(4.0), 255);
-        assert_eq!(linear_to_srgb8(0.214_041), 128);
+        assert_eq!(linear_to_srgb8(0.5), 188);
+        assert_eq!(linear_to_srgb8(0.002), 7);
     }
 
     #[test]

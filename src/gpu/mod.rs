@@ -254,7 +254,13 @@ impl Gpu {
 
 /// wgpu's messages span several indented lines; a CLI error is one line.
 fn one_line(message: &str) -> String {
-    message.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join(": ").replace(":: ", ": ")
+    message
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty())
+        .collect::<Vec<_>>()
+        .join(": ")
+        .replace(":: ", ": ")
 }
 
 fn preference_rank(kind: wgpu::DeviceType) -> u8 {

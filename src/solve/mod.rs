@@ -33,7 +33,11 @@ pub struct SolveOptions {
 
 impl Default for SolveOptions {
     fn default() -> Self {
-        SolveOptions { shadow_map_size: None, batch_size: 64, bounce: BounceOptions::default() }
+        SolveOptions {
+            shadow_map_size: None,
+            batch_size: 64,
+            bounce: BounceOptions::default(),
+        }
     }
 }
 
@@ -63,7 +67,10 @@ pub struct Skipped {
 }
 
 fn skip(skipped: &mut Vec<Skipped>, pass: &str, reason: &str) {
-    skipped.push(Skipped { pass: pass.into(), reason: reason.into() });
+    skipped.push(Skipped {
+        pass: pass.into(),
+        reason: reason.into(),
+    });
 }
 
 /// Runs every pass the scene needs. `progress(done, total)` reports the
@@ -83,7 +90,15 @@ pub fn run(
     let mut sees_itself = true;
     match lights {
         Some(lights) if !lights.lights.is_empty() => {
-            let (irradiance, stats) = direct::run(gpu, scene, texels, lights, texels_per_unit, options, progress)?;
+            let (irradiance, stats) = direct::run(
+                gpu,
+                scene,
+                texels,
+                lights,
+                texels_per_unit,
+                options,
+                progress,
+            )?;
             for (value, e) in lightmap.iter_mut().zip(irradiance) {
                 *value = e.map(|c| c / std::f32::consts::PI);
             }
@@ -94,20 +109,53 @@ pub fn run(
         None => skip(&mut skipped, "direct", "no environment was given"),
     }
 
-    let emitters = texels.texels.iter().any(|t| t.area > 0.0 && t.emission.iter().any(|&e| e > 0.0));
-    let reflects = texels.texels.iter().zip(&lightmap).any(|(t, l)| t.area > 0.0 && (0..3).any(|c| t.albedo[c] * l[c] > 0.0));
+    let emitters = texels
+        .texels
+        .iter()
+        .any(|t| t.area > 0.0 && t.emission.iter().any(|&e| e > 0.0));
+    let reflects = texels
+        .texels
+        .iter()
+        .zip(&lightmap)
+        .any(|(t, l)| t.area > 0.0 && (0..3).any(|c| t.albedo[c] * l[c] > 0.0));
     if !emitters {
         skip(&mut skipped, "emission", "no surface is emissive");
     }
     let mut bounce_stats = None;
     if !emitters && !reflects {
-        skip(&mut skipped, "bounce", "no light to bounce: the surfaces are black or unlit");
+        skip(
+            &mut skipped,
+            "bounce",
+            "no light to bounce: the surfaces are black or unlit",
+        );
     } else if !sees_itself {
-        skip(&mut skipped, "bounce", "no surface sees another (every texel sees open sky in every direction)");
+        skip(
+            &mut skipped,
+            "bounce",
+            "no surface sees another (every texel sees open sky in every direction)",
+        );
     } else {
-        let patches = patches::build(texels, options.bounce.patches, 1.0 / texels_per_unit.max(1e-30));
-        let stats = bounce::run(gpu, scene, texels, &patches, &mut lightmap, texels_per_unit, &options.bounce, progress)?;
+        let patches = patches::build(
+            texels,
+            options.bounce.patches,
+            1.0 / texels_per_unit.max(1e-30),
+        );
+        let stats = bounce::run(
+            gpu,
+            scene,
+            texels,
+            &patches,
+            &mut lightmap,
+            texels_per_unit,
+            &options.bounce,
+            progress,
+        )?;
         bounce_stats = Some(stats);
     }
-    Ok(Solution { lightmap, direct: direct_stats, bounce: bounce_stats, skipped })
+    Ok(Solution {
+        lightmap,
+        direct: direct_stats,
+        bounce: bounce_stats,
+        skipped,
+    })
 }
