@@ -64,12 +64,7 @@ fn main() -> Result<()> {
         ),
         None => None,
     };
-    if environment.is_none()
-        && !scene
-            .materials
-            .iter()
-            .any(|m| m.emission.iter().any(|&e| e > 0.0))
-    {
+    if environment.is_none() && !scene.materials.iter().any(|m| m.emission.iter().any(|&e| e > 0.0)) {
         bail!("nothing lights the scene: give --env or use emissive materials");
     }
     let loaded = start.elapsed().as_secs_f64();
@@ -103,16 +98,9 @@ fn main() -> Result<()> {
     );
     if !estimates.is_empty() {
         let n = estimates.len() as f64;
-        let mean: Vec<f64> = (0..3)
-            .map(|c| estimates.iter().map(|e| e.lightmap[c]).sum::<f64>() / n)
-            .collect();
+        let mean: Vec<f64> = (0..3).map(|c| estimates.iter().map(|e| e.lightmap[c]).sum::<f64>() / n).collect();
         let max = (0..3)
-            .map(|c| {
-                estimates
-                    .iter()
-                    .map(|e| e.lightmap[c])
-                    .fold(f64::NEG_INFINITY, f64::max)
-            })
+            .map(|c| estimates.iter().map(|e| e.lightmap[c]).fold(f64::NEG_INFINITY, f64::max))
             .collect::<Vec<_>>();
         let relative_error = estimates
             .iter()

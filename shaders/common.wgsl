@@ -58,7 +58,7 @@ struct DirectParams {
     _pad2: u32,
 }
 
-// A distant light: unit direction towards it, and L·Ω (rgb).
+// A distant light: unit direction towards it, and L·Ω (rgb) with Ω in w.
 struct DirectLight {
     direction: vec4f,
     power: vec4f,

@@ -7,10 +7,13 @@
 @group(0) @binding(0) var<uniform> params: DirectParams;
 @group(0) @binding(1) var<uniform> lights: LightBatch;
 @group(0) @binding(2) var<storage, read> texels: array<Texel>;
-// Irradiance E per texel (rgb) and the number of lights in front of it that
-// geometry blocks (w), accumulated over batches. No texel blocked means no
-// surface sees another: the bounce pass has nothing to do.
+// Irradiance E per texel (rgb), accumulated over batches.
 @group(0) @binding(3) var<storage, read_write> irradiance: array<vec4f>;
+// Per texel: Σ Ω cos θ over the lights in front of it that geometry blocks
+// (x), and over all lights in front of it (y). Their ratio is the share of
+// the texel's hemisphere the scene covers: how much of the light it reflects
+// lands on other surfaces. No texel blocked means no surface sees another.
+@group(0) @binding(5) var<storage, read_write> coverage: array<vec2f>;
 // The batch's shadow maps, tiled `tiles_per_row` to a row.
 @group(0) @binding(4) var depth_maps: texture_depth_2d;
 
@@ -29,7 +32,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let p = texel.position + face * params.normal_offset;
     let size = params.map_size;
     var sum = vec3f(0.0);
-    var blocked = 0u;
+    var blocked = 0.0;
+    var facing = 0.0;
     for (var k = 0u; k < params.light_count; k++) {
         let light = lights.items[k];
         let w = light.direction.xyz;
@@ -46,11 +50,14 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         let cos_f = abs(dot(face, w));
         let tangent = min(sqrt(max(1.0 - cos_f * cos_f, 0.0)) / max(cos_f, 1e-4), params.max_slope);
         let bias = (params.constant_bias + params.slope_bias * tangent) / (2.0 * params.radius);
+        let weight = light.power.w * cos_n;
+        facing += weight;
         if (ls.z <= stored + bias) {
             sum += light.power.rgb * cos_n;
         } else {
-            blocked += 1u;
+            blocked += weight;
         }
     }
-    irradiance[i] += vec4f(sum, f32(blocked));
+    irradiance[i] += vec4f(sum, 0.0);
+    coverage[i] += vec2f(blocked, facing);
 }

@@ -96,8 +96,11 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_
         let r2 = dot(to_shooter, to_shooter);
         let r = sqrt(r2);
         let near = r < NEAR_FIELD * s.radius;
+        // A receiver facing away from the patch's centroid gets nothing, also
+        // in the near field: a curved patch's parallelogram would otherwise
+        // hover over its neighbours on a convex surface and light them.
         let cos_i = dot(texel.normal, to_shooter) / r;
-        if (!near && cos_i <= 0.0) {
+        if (cos_i <= 0.0) {
             continue;
         }
 

@@ -11,7 +11,7 @@ use crate::config::{BakeOptions, Config, EnvironmentOptions};
 use crate::environment::LightMode;
 use crate::export::ExportOptions;
 use crate::progress::LogMode;
-use crate::solve::SolveOptions;
+use crate::solve::{BounceOptions, SolveOptions};
 use crate::unwrap::{Backend, UnwrapOptions};
 
 /// Bake diffuse global illumination from an HDR environment into glTF lightmaps.
@@ -60,12 +60,7 @@ pub struct Args {
     pub lights: LightMode,
 
     /// Turn the environment about +Y by this many degrees
-    #[arg(
-        long,
-        value_name = "DEG",
-        default_value_t = 0.0,
-        allow_hyphen_values = true
-    )]
+    #[arg(long, value_name = "DEG", default_value_t = 0.0, allow_hyphen_values = true)]
     pub env_rotation: f32,
 
     /// Scale the environment's radiance
@@ -81,13 +76,25 @@ pub struct Args {
     #[arg(long, value_name = "N")]
     pub shadow_map_size: Option<u32>,
 
+    /// Stop bouncing light when the unshot power falls below this fraction of the power put in;
+    /// the rest is added as an ambient term and reported
+    #[arg(long, value_name = "FRACTION", default_value_t = 0.01)]
+    pub tolerance: f64,
+
+    /// Stop bouncing after this many patch shots [default: 64 per patch]
+    #[arg(long, value_name = "N")]
+    pub max_shots: Option<u64>,
+
+    /// Stop bouncing after this many seconds (makes the result depend on the machine's speed)
+    #[arg(long, value_name = "SECONDS")]
+    pub max_time: Option<f64>,
+
+    /// About how many shooter patches to group the lightmap texels into for bounced light
+    #[arg(long, value_name = "N", default_value_t = 1024)]
+    pub patches: u32,
+
     /// Exposure in stops of the 8-bit preview texture viewers show (the EXR is not scaled)
-    #[arg(
-        long,
-        value_name = "EV",
-        default_value_t = 0.0,
-        allow_hyphen_values = true
-    )]
+    #[arg(long, value_name = "EV", default_value_t = 0.0, allow_hyphen_values = true)]
     pub exposure: f32,
 
     /// Use the GPU adapter whose name contains this text (e.g. "llvmpipe", "NVIDIA")
@@ -119,10 +126,7 @@ impl Args {
             bail!("--texels-per-unit must be a positive number, not {t}");
         }
         if !(16..=16384).contains(&self.max_atlas_size) {
-            bail!(
-                "--max-atlas-size must be between 16 and 16384, not {}",
-                self.max_atlas_size
-            );
+            bail!("--max-atlas-size must be between 16 and 16384, not {}", self.max_atlas_size);
         }
         if self.padding > 64 {
             bail!("--padding must be at most 64 texels, not {}", self.padding);
@@ -131,15 +135,23 @@ impl Args {
             bail!("--env-rotation must be a finite angle");
         }
         if !(self.env_intensity.is_finite() && self.env_intensity >= 0.0) {
-            bail!(
-                "--env-intensity must be a finite number ≥ 0, not {}",
-                self.env_intensity
-            );
+            bail!("--env-intensity must be a finite number ≥ 0, not {}", self.env_intensity);
         }
         if let Some(size) = self.shadow_map_size
             && !(16..=16384).contains(&size)
         {
             bail!("--shadow-map-size must be between 16 and 16384, not {size}");
+        }
+        if !(self.tolerance.is_finite() && self.tolerance >= 0.0 && self.tolerance < 1.0) {
+            bail!("--tolerance must be a fraction in [0, 1), not {}", self.tolerance);
+        }
+        if let Some(seconds) = self.max_time
+            && !(seconds.is_finite() && seconds >= 0.0)
+        {
+            bail!("--max-time must be a number of seconds ≥ 0, not {seconds}");
+        }
+        if !(1..=1 << 20).contains(&self.patches) {
+            bail!("--patches must be between 1 and 1048576, not {}", self.patches);
         }
         if !self.exposure.is_finite() {
             bail!("--exposure must be finite");
@@ -170,12 +182,16 @@ impl Args {
                 },
                 solve: SolveOptions {
                     shadow_map_size: self.shadow_map_size,
+                    bounce: BounceOptions {
+                        tolerance: self.tolerance,
+                        max_shots: self.max_shots,
+                        max_seconds: self.max_time,
+                        patches: self.patches,
+                        ..BounceOptions::default()
+                    },
                     ..SolveOptions::default()
                 },
-                export: ExportOptions {
-                    exposure: self.exposure,
-                    ..ExportOptions::default()
-                },
+                export: ExportOptions { exposure: self.exposure, ..ExportOptions::default() },
             },
             log,
         })
@@ -189,9 +205,7 @@ mod tests {
     fn parse(args: &[&str]) -> Result<Config> {
         let mut full = vec!["bake"];
         full.extend_from_slice(args);
-        Args::try_parse_from(full)
-            .map_err(|e| anyhow::anyhow!("{e}"))?
-            .into_config()
+        Args::try_parse_from(full).map_err(|e| anyhow::anyhow!("{e}"))?.into_config()
     }
 
     #[test]
@@ -206,6 +220,9 @@ mod tests {
         assert_eq!(config.environment_options.lights, LightMode::default());
         assert_eq!(config.environment_options.intensity, 1.0);
         assert_eq!(config.bake.export.exposure, 0.0);
+        assert_eq!(config.bake.solve.bounce.tolerance, 0.01);
+        assert_eq!(config.bake.solve.bounce.max_shots, None);
+        assert_eq!(config.bake.solve.bounce.patches, 1024);
         assert_eq!(config.log, LogMode::Auto);
     }
 
@@ -250,15 +267,16 @@ mod tests {
         assert_eq!(config.bake.unwrap.max_atlas_size, 512);
         assert_eq!(config.bake.unwrap.padding, 3);
         assert_eq!(config.bake.unwrap.backend, Backend::Uvunwrap);
-        assert_eq!(
-            config.environment_options.lights,
-            LightMode::Cube { face_size: 8 }
-        );
+        assert_eq!(config.environment_options.lights, LightMode::Cube { face_size: 8 });
         assert_eq!(config.environment_options.rotation_degrees, -90.0);
         assert_eq!(config.environment_options.intensity, 2.0);
         assert!(config.environment_options.clamp_nonfinite);
         assert_eq!(config.bake.solve.shadow_map_size, Some(256));
         assert_eq!(config.bake.export.exposure, -1.5);
+        assert_eq!(config.bake.solve.bounce.tolerance, 0.05);
+        assert_eq!(config.bake.solve.bounce.max_shots, Some(100));
+        assert_eq!(config.bake.solve.bounce.max_seconds, Some(2.5));
+        assert_eq!(config.bake.solve.bounce.patches, 300);
         assert_eq!(config.adapter.as_deref(), Some("llvmpipe"));
         assert_eq!(config.log, LogMode::Json);
         assert_eq!(parse(&["a.glb", "-q"]).unwrap().log, LogMode::Quiet);
@@ -273,6 +291,9 @@ mod tests {
             &["a.glb", "--padding", "100"],
             &["a.glb", "--env-intensity", "-1"],
             &["a.glb", "--shadow-map-size", "4"],
+            &["a.glb", "--tolerance", "1.5"],
+            &["a.glb", "--max-time", "-1"],
+            &["a.glb", "--patches", "0"],
             &["a.glb", "--lights", "sphere:3"],
             &["a.glb", "--unwrapper", "magic"],
             &[],

@@ -23,15 +23,10 @@ impl MeshData {
             let theta = r as f32 / rings as f32 * std::f32::consts::PI;
             for s in 0..=segments {
                 let phi = s as f32 / segments as f32 * std::f32::consts::TAU;
-                let n = Vec3::new(
-                    theta.sin() * phi.cos(),
-                    theta.cos(),
-                    -theta.sin() * phi.sin(),
-                );
+                let n = Vec3::new(theta.sin() * phi.cos(), theta.cos(), -theta.sin() * phi.sin());
                 mesh.positions.push((n * radius).to_array());
                 mesh.normals.push(n.to_array());
-                mesh.uv0
-                    .push([s as f32 / segments as f32, r as f32 / rings as f32]);
+                mesh.uv0.push([s as f32 / segments as f32, r as f32 / rings as f32]);
             }
         }
         let row = segments + 1;
@@ -58,8 +53,7 @@ impl MeshData {
         for j in 0..=cells {
             for i in 0..=cells {
                 let (u, v) = (i as f32 / cells as f32, j as f32 / cells as f32);
-                mesh.positions
-                    .push([(u - 0.5) * width, 0.0, (v - 0.5) * depth]);
+                mesh.positions.push([(u - 0.5) * width, 0.0, (v - 0.5) * depth]);
                 mesh.normals.push([0.0, 1.0, 0.0]);
                 mesh.uv0.push([u, v]);
             }
@@ -68,8 +62,7 @@ impl MeshData {
         for j in 0..cells {
             for i in 0..cells {
                 let a = j * row + i;
-                mesh.indices
-                    .extend_from_slice(&[a, a + row, a + 1, a + 1, a + row, a + row + 1]);
+                mesh.indices.extend_from_slice(&[a, a + row, a + 1, a + 1, a + row, a + row + 1]);
             }
         }
         mesh
@@ -89,38 +82,19 @@ impl MeshData {
     fn cuboid_facing(size: [f32; 3], inward: bool) -> MeshData {
         let half = Vec3::from(size) * 0.5;
         let mut mesh = MeshData::default();
-        let faces = [
-            Vec3::X,
-            Vec3::NEG_X,
-            Vec3::Y,
-            Vec3::NEG_Y,
-            Vec3::Z,
-            Vec3::NEG_Z,
-        ];
+        let faces = [Vec3::X, Vec3::NEG_X, Vec3::Y, Vec3::NEG_Y, Vec3::Z, Vec3::NEG_Z];
         for n in faces {
-            let (u, v) = if n.y.abs() > 0.5 {
-                (Vec3::X, Vec3::Z)
-            } else {
-                (n.cross(Vec3::Y).normalize(), Vec3::Y)
-            };
+            let (u, v) = if n.y.abs() > 0.5 { (Vec3::X, Vec3::Z) } else { (n.cross(Vec3::Y).normalize(), Vec3::Y) };
             let base = mesh.positions.len() as u32;
             for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
                 let p = (n + u * a + v * b) * half;
                 mesh.positions.push(p.to_array());
-                mesh.normals.push(if inward {
-                    (-n).to_array()
-                } else {
-                    n.to_array()
-                });
+                mesh.normals.push(if inward { (-n).to_array() } else { n.to_array() });
                 mesh.uv0.push([(a + 1.0) * 0.5, (b + 1.0) * 0.5]);
             }
             // Counter-clockwise seen from the side the normal points to.
             let outward = (u * 2.0).cross(v * 2.0).dot(n) > 0.0;
-            let quad = if outward != inward {
-                [0, 1, 2, 0, 2, 3]
-            } else {
-                [0, 2, 1, 0, 3, 2]
-            };
+            let quad = if outward != inward { [0, 1, 2, 0, 2, 3] } else { [0, 2, 1, 0, 3, 2] };
             mesh.indices.extend(quad.iter().map(|i| base + i));
         }
         mesh
@@ -137,20 +111,13 @@ pub struct Placement {
 
 impl Default for Placement {
     fn default() -> Self {
-        Placement {
-            translation: Vec3::ZERO,
-            rotation: Quat::IDENTITY,
-            scale: Vec3::ONE,
-        }
+        Placement { translation: Vec3::ZERO, rotation: Quat::IDENTITY, scale: Vec3::ONE }
     }
 }
 
 impl Placement {
     pub fn at(translation: Vec3) -> Placement {
-        Placement {
-            translation,
-            ..Default::default()
-        }
+        Placement { translation, ..Default::default() }
     }
     pub fn rotated(mut self, rotation: Quat) -> Placement {
         self.rotation = rotation;
@@ -190,8 +157,7 @@ impl SceneBuilder {
             let strength = peak.max(1.0);
             material["emissiveFactor"] = json!(emission.map(|e| e / strength));
             if strength > 1.0 {
-                material["extensions"] =
-                    json!({ "KHR_materials_emissive_strength": { "emissiveStrength": strength } });
+                material["extensions"] = json!({ "KHR_materials_emissive_strength": { "emissiveStrength": strength } });
             }
         }
         self.materials.push(material);
@@ -202,8 +168,7 @@ impl SceneBuilder {
         while !self.binary.len().is_multiple_of(4) {
             self.binary.push(0);
         }
-        let mut view =
-            json!({ "buffer": 0, "byteOffset": self.binary.len(), "byteLength": bytes.len() });
+        let mut view = json!({ "buffer": 0, "byteOffset": self.binary.len(), "byteLength": bytes.len() });
         if let Some(target) = target {
             view["target"] = json!(target);
         }
@@ -212,12 +177,7 @@ impl SceneBuilder {
         self.buffer_views.len() - 1
     }
 
-    fn push_floats<const N: usize>(
-        &mut self,
-        values: &[[f32; N]],
-        kind: &str,
-        bounds: bool,
-    ) -> usize {
+    fn push_floats<const N: usize>(&mut self, values: &[[f32; N]], kind: &str, bounds: bool) -> usize {
         let view = self.push_view(bytemuck::cast_slice(values), Some(34962));
         let mut accessor = json!({ "bufferView": view, "componentType": 5126, "count": values.len(), "type": kind });
         if bounds {
@@ -247,14 +207,13 @@ impl SceneBuilder {
             attributes["TEXCOORD_0"] = json!(self.push_floats(&data.uv0, "VEC2", false));
         }
         let view = self.push_view(bytemuck::cast_slice(&data.indices), Some(34963));
-        self.accessors.push(json!({ "bufferView": view, "componentType": 5125, "count": data.indices.len(), "type": "SCALAR" }));
-        let mut primitive =
-            json!({ "attributes": attributes, "indices": self.accessors.len() - 1 });
+        self.accessors
+            .push(json!({ "bufferView": view, "componentType": 5125, "count": data.indices.len(), "type": "SCALAR" }));
+        let mut primitive = json!({ "attributes": attributes, "indices": self.accessors.len() - 1 });
         if let Some(material) = material {
             primitive["material"] = json!(material);
         }
-        self.meshes
-            .push(json!({ "name": name, "primitives": [primitive] }));
+        self.meshes.push(json!({ "name": name, "primitives": [primitive] }));
         self.meshes.len() - 1
     }
 
@@ -322,24 +281,13 @@ impl SceneBuilder {
 pub fn files() -> anyhow::Result<Vec<(String, Vec<u8>)>> {
     use crate::environment::{EnvironmentMap, ExrPrecision, write_exr, write_hdr};
     let mut files = vec![
-        (
-            "sphere_on_ground.glb".to_string(),
-            sphere_on_ground().to_glb(),
-        ),
+        ("sphere_on_ground.glb".to_string(), sphere_on_ground().to_glb()),
         ("sphere.glb".to_string(), lone_sphere().to_glb()),
     ];
     let maps = [
         ("sky_constant", EnvironmentMap::constant([1.0; 3])),
         ("sky_horizon", EnvironmentMap::horizon([1.0; 3])),
-        (
-            "sky_sun",
-            EnvironmentMap::sun_and_sky(
-                [0.3, 0.45, 0.8],
-                [0.4, 0.6, 0.3],
-                1e4,
-                0.5f32.to_radians(),
-            ),
-        ),
+        ("sky_sun", EnvironmentMap::sun_and_sky([0.3, 0.45, 0.8], [0.4, 0.6, 0.3], 1e4, 0.5f32.to_radians())),
     ];
     let dir = std::env::temp_dir().join(format!("bake-fixtures-{}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
@@ -358,13 +306,7 @@ pub fn files() -> anyhow::Result<Vec<(String, Vec<u8>)>> {
 /// A white-ish sphere of radius 1 floating 0.5 m above a 10×10 m ground.
 pub fn sphere_on_ground() -> SceneBuilder {
     let mut scene = SceneBuilder::new();
-    scene.object(
-        "ground",
-        &MeshData::plane(10.0, 10.0, 4),
-        [0.8, 0.8, 0.8, 1.0],
-        [0.0; 3],
-        Placement::default(),
-    );
+    scene.object("ground", &MeshData::plane(10.0, 10.0, 4), [0.8, 0.8, 0.8, 1.0], [0.0; 3], Placement::default());
     scene.object(
         "sphere",
         &MeshData::sphere(1.0, 48, 24),
@@ -378,12 +320,6 @@ pub fn sphere_on_ground() -> SceneBuilder {
 /// A sphere of radius 1 alone at the origin (the white furnace).
 pub fn lone_sphere() -> SceneBuilder {
     let mut scene = SceneBuilder::new();
-    scene.object(
-        "sphere",
-        &MeshData::sphere(1.0, 48, 24),
-        [0.8, 0.8, 0.8, 1.0],
-        [0.0; 3],
-        Placement::default(),
-    );
+    scene.object("sphere", &MeshData::sphere(1.0, 48, 24), [0.8, 0.8, 0.8, 1.0], [0.0; 3], Placement::default());
     scene
 }

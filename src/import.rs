@@ -29,8 +29,7 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
 
     let mut notices = Vec::new();
     let mut primitives = Vec::new();
-    let mut stack: Vec<(gltf::Node, Mat4)> =
-        gltf_scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
+    let mut stack: Vec<(gltf::Node, Mat4)> = gltf_scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
     stack.reverse();
     let mut visits = 0usize;
     while let Some((node, parent)) = stack.pop() {
@@ -51,10 +50,7 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
     }
 
     let materials = document.materials().map(material).collect();
-    let lights = source
-        .json
-        .pointer("/extensions/KHR_lights_punctual/lights")
-        .and_then(|l| l.as_array());
+    let lights = source.json.pointer("/extensions/KHR_lights_punctual/lights").and_then(|l| l.as_array());
     if let Some(lights) = lights.filter(|l| !l.is_empty()) {
         notices.push(format!(
             "{} punctual light(s) (KHR_lights_punctual) are kept in the output but not baked: \
@@ -62,28 +58,14 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
             lights.len()
         ));
     }
-    let name = source
-        .path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "scene".into());
-    Ok(Scene {
-        name,
-        source,
-        primitives,
-        materials,
-        notices,
-    })
+    let name = source.path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "scene".into());
+    Ok(Scene { name, source, primitives, materials, notices })
 }
 
 fn describe(node: &gltf::Node, mesh: &gltf::Mesh) -> String {
     let node_name = node.name().map(|n| format!(" '{n}'")).unwrap_or_default();
     let mesh_name = mesh.name().map(|n| format!(" '{n}'")).unwrap_or_default();
-    format!(
-        "mesh {}{mesh_name} on node {}{node_name}",
-        mesh.index(),
-        node.index()
-    )
+    format!("mesh {}{mesh_name} on node {}{node_name}", mesh.index(), node.index())
 }
 
 fn collect_mesh(
@@ -96,9 +78,7 @@ fn collect_mesh(
 ) -> Result<()> {
     let what = describe(node, mesh);
     if node.skin().is_some() {
-        notices.push(format!(
-            "{what} is skinned (not static): left out of the bake"
-        ));
+        notices.push(format!("{what} is skinned (not static): left out of the bake"));
         return Ok(());
     }
     let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
@@ -106,25 +86,16 @@ fn collect_mesh(
     for primitive in mesh.primitives() {
         let what = format!("{what}, primitive {}", primitive.index());
         if primitive.morph_targets().len() > 0 {
-            notices.push(format!(
-                "{what} has morph targets (not static): left out of the bake"
-            ));
+            notices.push(format!("{what} has morph targets (not static): left out of the bake"));
             continue;
         }
         let mode = primitive.mode();
-        if !matches!(
-            mode,
-            Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
-        ) {
-            notices.push(format!(
-                "{what} draws {mode:?}, not triangles: left out of the bake"
-            ));
+        if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+            notices.push(format!("{what} draws {mode:?}, not triangles: left out of the bake"));
             continue;
         }
         let Some(position_accessor) = primitive.get(&gltf::Semantic::Positions) else {
-            notices.push(format!(
-                "{what} has no POSITION attribute: left out of the bake"
-            ));
+            notices.push(format!("{what} has no POSITION attribute: left out of the bake"));
             continue;
         };
         let read = || -> Result<ScenePrimitive> {
@@ -133,14 +104,9 @@ fn collect_mesh(
                 bail!("POSITION {i} is not finite ({:?})", local[i]);
             }
             let count = local.len();
-            let positions: Vec<[f32; 3]> = local
-                .iter()
-                .map(|&p| world.transform_point3(Vec3::from(p)).to_array())
-                .collect();
-            if let Some(i) = positions
-                .iter()
-                .position(|p| p.iter().any(|c| !c.is_finite()))
-            {
+            let positions: Vec<[f32; 3]> =
+                local.iter().map(|&p| world.transform_point3(Vec3::from(p)).to_array()).collect();
+            if let Some(i) = positions.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
                 bail!("world position of vertex {i} is not finite: the node transform overflows");
             }
             let normals = match primitive.get(&gltf::Semantic::Normals) {
@@ -209,9 +175,9 @@ fn triangle_list(mode: Mode, drawn: &[u32]) -> Vec<u32> {
         Mode::TriangleStrip => (0..drawn.len().saturating_sub(2))
             .flat_map(|i| [drawn[i], drawn[i + 1 + i % 2], drawn[i + 2 - i % 2]])
             .collect(),
-        Mode::TriangleFan => (0..drawn.len().saturating_sub(2))
-            .flat_map(|i| [drawn[i + 1], drawn[i + 2], drawn[0]])
-            .collect(),
+        Mode::TriangleFan => {
+            (0..drawn.len().saturating_sub(2)).flat_map(|i| [drawn[i + 1], drawn[i + 2], drawn[0]]).collect()
+        }
         _ => drawn[..drawn.len() - drawn.len() % 3].to_vec(),
     }
 }
@@ -232,18 +198,12 @@ mod tests {
 
     #[test]
     fn strips_alternate_winding() {
-        assert_eq!(
-            triangle_list(Mode::TriangleStrip, &[0, 1, 2, 3]),
-            vec![0, 1, 2, 1, 3, 2]
-        );
+        assert_eq!(triangle_list(Mode::TriangleStrip, &[0, 1, 2, 3]), vec![0, 1, 2, 1, 3, 2]);
     }
 
     #[test]
     fn fans_share_the_first_vertex() {
         // glTF spec: fan triangle i is (i+1, i+2, 0).
-        assert_eq!(
-            triangle_list(Mode::TriangleFan, &[0, 1, 2, 3]),
-            vec![1, 2, 0, 2, 3, 0]
-        );
+        assert_eq!(triangle_list(Mode::TriangleFan, &[0, 1, 2, 3]), vec![1, 2, 0, 2, 3, 0]);
     }
 }

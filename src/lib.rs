@@ -62,10 +62,7 @@ fn stage<T>(
     progress.stage(scene, name);
     let (value, summary) = f(progress)?;
     progress.finish(&summary);
-    stages.push(StageTime {
-        stage: name.to_string(),
-        seconds: start.elapsed().as_secs_f64(),
-    });
+    stages.push(StageTime { stage: name.to_string(), seconds: start.elapsed().as_secs_f64() });
     Ok(value)
 }
 
@@ -84,10 +81,7 @@ pub fn bake_scene(
         let meshes: Vec<unwrap::MeshInput> = scene
             .primitives
             .iter()
-            .map(|p| unwrap::MeshInput {
-                positions: &p.positions,
-                indices: &p.indices,
-            })
+            .map(|p| unwrap::MeshInput { positions: &p.positions, indices: &p.indices })
             .collect();
         let atlas = unwrap::run(&meshes, &options.unwrap).context("unwrap")?;
         let summary = format!(
@@ -106,67 +100,39 @@ pub fn bake_scene(
     notices.extend(atlas.notices.iter().cloned());
     let texels = stage(progress, &mut stages, &name, "texelize", |_| {
         let texels = texelize::run(gpu, &scene, &atlas)?;
-        let summary = format!(
-            "{} texels covering {:.4} m²",
-            texels.texels.len(),
-            texels.total_area()
-        );
+        let summary = format!("{} texels covering {:.4} m²", texels.texels.len(), texels.total_area());
         Ok((texels, summary))
     })?;
     let solution = stage(progress, &mut stages, &name, "solve", |progress| {
-        let solution = solve::run(
-            gpu,
-            &scene,
-            &texels,
-            lights,
-            atlas.texels_per_unit,
-            &options.solve,
-            &mut |d, t| progress.update(d, t),
-        )?;
-        let summary = match &solution.direct {
-            Some(d) => format!(
-                "{} lights × {} texels, shadow maps {}²",
-                d.lights,
-                texels.texels.len(),
-                d.shadow_map_size
-            ),
-            None => "nothing to solve".to_string(),
-        };
+        let solution = solve::run(gpu, &scene, &texels, lights, atlas.texels_per_unit, &options.solve, &mut |d, t| {
+            progress.update(d, t)
+        })?;
+        let mut parts = Vec::new();
+        if let Some(d) = &solution.direct {
+            parts.push(format!("{} lights × {} texels, shadow maps {}²", d.lights, texels.texels.len(), d.shadow_map_size));
+        }
+        if let Some(b) = &solution.bounce {
+            parts.push(format!(
+                "{} shots from {} patches ({}), {:.2}% unshot",
+                b.shots,
+                b.patches,
+                b.stopped_by,
+                b.unshot_fraction * 100.0
+            ));
+        }
+        let summary = if parts.is_empty() { "nothing to solve".to_string() } else { parts.join("; ") };
         Ok((solution, summary))
     })?;
-    Ok(Baked {
-        scene,
-        atlas,
-        texels,
-        solution,
-        stages,
-        notices,
-    })
+    Ok(Baked { scene, atlas, texels, solution, stages, notices })
 }
 
 /// Loads the environment and extracts its lights.
-pub fn load_environment(
-    path: &Path,
-    options: &EnvironmentOptions,
-) -> Result<(LightSet, EnvironmentReport)> {
+pub fn load_environment(path: &Path, options: &EnvironmentOptions) -> Result<(LightSet, EnvironmentReport)> {
     let start = Instant::now();
-    let loaded = EnvironmentMap::load(
-        path,
-        &environment::EnvLoadOptions {
-            clamp_nonfinite: options.clamp_nonfinite,
-        },
-    )?;
-    let lights = LightSet::extract(
-        &loaded.map,
-        options.lights,
-        options.rotation_degrees,
-        options.intensity,
-    );
+    let loaded = EnvironmentMap::load(path, &environment::EnvLoadOptions { clamp_nonfinite: options.clamp_nonfinite })?;
+    let lights = LightSet::extract(&loaded.map, options.lights, options.rotation_degrees, options.intensity);
     if lights.lights.is_empty() {
-        bail!(
-            "environment '{}': the map has no energy (every texel is black)",
-            path.display()
-        );
+        bail!("environment '{}': the map has no energy (every texel is black)", path.display());
     }
     let report = EnvironmentReport {
         path: path.to_path_buf(),
@@ -219,10 +185,7 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
             for notice in &report.notices {
                 progress.notice(notice);
             }
-            progress.finish(&format!(
-                "{} lights from {}×{} map",
-                report.lights, report.width, report.height
-            ));
+            progress.finish(&format!("{} lights from {}×{} map", report.lights, report.width, report.height));
             Some((lights, report))
         }
         None => None,
@@ -233,26 +196,14 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
         let mut stages = Vec::new();
         let scene = stage(progress, &mut stages, &input_stem(input), "import", |_| {
             let scene = import::load(input)?;
-            let summary = format!(
-                "{} primitives, {} triangles",
-                scene.primitives.len(),
-                scene.triangle_count()
-            );
+            let summary = format!("{} primitives, {} triangles", scene.primitives.len(), scene.triangle_count());
             Ok((scene, summary))
         })?;
         for notice in &scene.notices {
             progress.notice(notice);
         }
-        if environment.is_none()
-            && !scene
-                .materials
-                .iter()
-                .any(|m| m.emission.iter().any(|&e| e > 0.0))
-        {
-            bail!(
-                "input '{}': nothing lights the scene: give --env or use emissive materials",
-                input.display()
-            );
+        if environment.is_none() && !scene.materials.iter().any(|m| m.emission.iter().any(|&e| e > 0.0)) {
+            bail!("input '{}': nothing lights the scene: give --env or use emissive materials", input.display());
         }
         let lights = environment.as_ref().map(|(lights, _)| lights);
         let baked = bake_scene(gpu, scene, lights, &config.bake, progress)
@@ -271,14 +222,7 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
             let summary = format!("{} files", stats.files.len());
             Ok((stats, summary))
         })?;
-        scenes.push(scene_report(
-            input,
-            &baked,
-            stages,
-            exported,
-            &config.bake,
-            &staging,
-        ));
+        scenes.push(scene_report(input, &baked, stages, exported, &config.bake, &staging));
     }
 
     let report = Report {
@@ -296,10 +240,7 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
 }
 
 fn input_stem(input: &Path) -> String {
-    input
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default()
+    input.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()
 }
 
 fn scene_report(
@@ -311,11 +252,7 @@ fn scene_report(
     staging: &output::Staging,
 ) -> SceneReport {
     let scene = &baked.scene;
-    let keys: Vec<(usize, usize, usize)> = scene
-        .primitives
-        .iter()
-        .map(|p| (p.node, p.mesh, p.primitive))
-        .collect();
+    let keys: Vec<(usize, usize, usize)> = scene.primitives.iter().map(|p| (p.node, p.mesh, p.primitive)).collect();
     let names: Vec<String> = scene
         .primitives
         .iter()
@@ -325,22 +262,14 @@ fn scene_report(
             let label = node
                 .and_then(|n| n.name().map(str::to_string))
                 .or_else(|| mesh.and_then(|m| m.name().map(str::to_string)));
-            format!(
-                "{}#{}",
-                label.unwrap_or_else(|| format!("node{}", p.node)),
-                p.primitive
-            )
+            format!("{}#{}", label.unwrap_or_else(|| format!("node{}", p.node)), p.primitive)
         })
         .collect();
     let mut notices = baked.notices.clone();
     notices.extend(exported.notices.iter().cloned());
     SceneReport {
         input: input.to_path_buf(),
-        outputs: exported
-            .files
-            .iter()
-            .map(|f| staging.final_path(f))
-            .collect(),
+        outputs: exported.files.iter().map(|f| staging.final_path(f)).collect(),
         stages,
         skipped: baked.solution.skipped.clone(),
         notices,
@@ -360,6 +289,7 @@ fn scene_report(
             dilated: exported.dilated_texels,
         },
         direct: baked.solution.direct.clone(),
+        bounce: baked.solution.bounce.clone(),
         energy: report::primitive_energy(&baked.texels, &baked.solution, &keys, &names),
     }
 }

@@ -21,10 +21,7 @@ impl Staging {
     pub fn new(output: &Path, inputs: &[PathBuf]) -> Result<Staging> {
         let mut names = HashSet::new();
         for input in inputs {
-            let stem = input
-                .file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_default();
+            let stem = input.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
             if !names.insert(stem.clone()) {
                 bail!(
                     "two inputs are named '{stem}': their outputs would overwrite each other; bake them into different folders"
@@ -48,21 +45,13 @@ impl Staging {
         let dir = if output.is_dir() {
             output.join(unique)
         } else {
-            match output
-                .parent()
-                .filter(|p| p.as_os_str().is_empty() || p.is_dir())
-            {
+            match output.parent().filter(|p| p.as_os_str().is_empty() || p.is_dir()) {
                 Some(parent) => parent.join(unique),
                 None => std::env::temp_dir().join(unique),
             }
         };
-        std::fs::create_dir_all(&dir)
-            .with_context(|| format!("cannot create staging folder '{}'", dir.display()))?;
-        Ok(Staging {
-            dir,
-            output: output.to_path_buf(),
-            committed: false,
-        })
+        std::fs::create_dir_all(&dir).with_context(|| format!("cannot create staging folder '{}'", dir.display()))?;
+        Ok(Staging { dir, output: output.to_path_buf(), committed: false })
     }
 
     /// Where stages write their files.
@@ -79,19 +68,16 @@ impl Staging {
     pub fn commit(mut self) -> Result<()> {
         std::fs::create_dir_all(&self.output)
             .with_context(|| format!("cannot create output folder '{}'", self.output.display()))?;
-        let mut entries: Vec<PathBuf> = std::fs::read_dir(&self.dir)?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .collect();
+        let mut entries: Vec<PathBuf> =
+            std::fs::read_dir(&self.dir)?.filter_map(|e| e.ok().map(|e| e.path())).collect();
         entries.sort();
         for staged in entries {
             let target = self.final_path(&staged);
             if std::fs::rename(&staged, &target).is_err() {
                 // A different filesystem: copy beside the target, then rename there.
                 let partial = target.with_extension("partial");
-                std::fs::copy(&staged, &partial)
-                    .with_context(|| format!("writing '{}'", partial.display()))?;
-                std::fs::rename(&partial, &target)
-                    .with_context(|| format!("writing '{}'", target.display()))?;
+                std::fs::copy(&staged, &partial).with_context(|| format!("writing '{}'", partial.display()))?;
+                std::fs::rename(&partial, &target).with_context(|| format!("writing '{}'", target.display()))?;
             }
         }
         self.committed = true;

@@ -72,11 +72,7 @@ impl Reporter {
     }
 
     fn label(&self) -> String {
-        if self.scene.is_empty() {
-            self.name.clone()
-        } else {
-            format!("{} {}", self.scene, self.name)
-        }
+        if self.scene.is_empty() { self.name.clone() } else { format!("{} {}", self.scene, self.name) }
     }
 
     fn line(&self, event: &str, message: &str) {
@@ -102,10 +98,8 @@ impl Progress for Reporter {
         if self.mode == LogMode::Auto {
             let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr());
             bar.set_style(
-                ProgressStyle::with_template(
-                    "{prefix:>4} {msg:32} {spinner} {wide_bar} {pos}/{len} eta {eta}",
-                )
-                .unwrap(),
+                ProgressStyle::with_template("{prefix:>4} {msg:32} {spinner} {wide_bar} {pos}/{len} eta {eta}")
+                    .unwrap(),
             );
             bar.set_prefix(format!("[{}]", self.count));
             bar.set_message(self.label());
@@ -122,20 +116,13 @@ impl Progress for Reporter {
             bar.set_position(done);
         } else if self.mode == LogMode::Text && self.last_line.elapsed() > Duration::from_secs(10) {
             self.last_line = Instant::now();
-            self.line(
-                "progress",
-                &format!("      {}: {done}/{total}", self.label()),
-            );
+            self.line("progress", &format!("      {}: {done}/{total}", self.label()));
         }
     }
 
     fn finish(&mut self, summary: &str) {
         let seconds = self.started.elapsed().as_secs_f64();
-        let text = format!(
-            "[{}] {}: {summary} ({seconds:.2} s)",
-            self.count,
-            self.label()
-        );
+        let text = format!("[{}] {}: {summary} ({seconds:.2} s)", self.count, self.label());
         match self.bar.take() {
             Some(bar) => {
                 bar.finish_and_clear();

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 
 use crate::gpu::AdapterDescription;
-use crate::solve::{Skipped, Solution, direct::DirectStats};
+use crate::solve::{BounceStats, Skipped, Solution, direct::DirectStats};
 use crate::texelize::TexelSet;
 
 /// Version of the report's layout; bumped on any incompatible change.
@@ -57,6 +57,9 @@ pub struct SceneReport {
     pub atlas: AtlasReport,
     pub texels: TexelReport,
     pub direct: Option<DirectStats>,
+    /// The bounce pass: shots, why it stopped, unshot energy left and the
+    /// ambient term that stands in for it, and the convergence trace.
+    pub bounce: Option<BounceStats>,
     /// Texel energy per baked primitive, in scene order.
     pub energy: Vec<PrimitiveEnergy>,
 }

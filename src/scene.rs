@@ -36,8 +36,7 @@ impl ScenePrimitive {
     /// The world-space normal of triangle `t` from its winding (front side), or
     /// zero for a degenerate triangle.
     pub fn face_normal(&self, t: usize) -> Vec3 {
-        let [a, b, c] =
-            [0, 1, 2].map(|k| Vec3::from(self.positions[self.indices[3 * t + k] as usize]));
+        let [a, b, c] = [0, 1, 2].map(|k| Vec3::from(self.positions[self.indices[3 * t + k] as usize]));
         let n = (b - a).cross(c - a);
         let n = if self.mirrored { -n } else { n };
         n.try_normalize().unwrap_or(Vec3::ZERO)
@@ -63,12 +62,7 @@ pub struct Material {
 impl Default for Material {
     /// glTF's default material: white, not emissive, single-sided.
     fn default() -> Self {
-        Material {
-            name: None,
-            base_color: [1.0; 4],
-            emission: [0.0; 3],
-            double_sided: false,
-        }
+        Material { name: None, base_color: [1.0; 4], emission: [0.0; 3], double_sided: false }
     }
 }
 
@@ -86,26 +80,17 @@ pub struct Scene {
 
 impl Scene {
     pub fn material(&self, primitive: &ScenePrimitive) -> Material {
-        primitive
-            .material
-            .and_then(|m| self.materials.get(m).cloned())
-            .unwrap_or_default()
+        primitive.material.and_then(|m| self.materials.get(m).cloned()).unwrap_or_default()
     }
 
     /// Axis-aligned bounds of all baked geometry, or `None` when there is none.
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
-        let mut points = self
-            .primitives
-            .iter()
-            .flat_map(|p| p.positions.iter().map(|&v| Vec3::from(v)));
+        let mut points = self.primitives.iter().flat_map(|p| p.positions.iter().map(|&v| Vec3::from(v)));
         let first = points.next()?;
         Some(points.fold((first, first), |(lo, hi), p| (lo.min(p), hi.max(p))))
     }
 
     pub fn triangle_count(&self) -> usize {
-        self.primitives
-            .iter()
-            .map(ScenePrimitive::triangle_count)
-            .sum()
+        self.primitives.iter().map(ScenePrimitive::triangle_count).sum()
     }
 }

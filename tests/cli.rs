@@ -9,17 +9,11 @@ use std::process::{Command, Output};
 use bake::report::Report;
 
 fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("fixtures")
-        .join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures").join(name)
 }
 
 fn bake(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_bake"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .expect("bake runs")
+    Command::new(env!("CARGO_BIN_EXE_bake")).current_dir(dir).args(args).output().expect("bake runs")
 }
 
 fn stderr(output: &Output) -> String {
@@ -30,21 +24,10 @@ fn stderr(output: &Output) -> String {
 fn assert_one_line_error(output: &Output, needle: &str) {
     let text = stderr(output);
     assert_eq!(output.status.code(), Some(2), "stderr: {text}");
-    let errors: Vec<&str> = text
-        .lines()
-        .filter(|l| l.starts_with("bake: error:"))
-        .collect();
+    let errors: Vec<&str> = text.lines().filter(|l| l.starts_with("bake: error:")).collect();
     assert_eq!(errors.len(), 1, "stderr: {text}");
-    assert!(
-        errors[0].contains(needle),
-        "'{}' does not name '{needle}'",
-        errors[0]
-    );
-    assert_eq!(
-        text.lines().count(),
-        1,
-        "quiet runs print only the error: {text}"
-    );
+    assert!(errors[0].contains(needle), "'{}' does not name '{needle}'", errors[0]);
+    assert_eq!(text.lines().count(), 1, "quiet runs print only the error: {text}");
 }
 
 #[test]
@@ -75,17 +58,10 @@ fn bakes_a_fixture_into_a_lightmapped_glb() {
     let mut baked_primitives = 0;
     for mesh in gltf.meshes() {
         for primitive in mesh.primitives() {
-            assert!(
-                primitive.get(&gltf::Semantic::TexCoords(1)).is_some(),
-                "mesh {} lacks TEXCOORD_1",
-                mesh.index()
-            );
+            assert!(primitive.get(&gltf::Semantic::TexCoords(1)).is_some(), "mesh {} lacks TEXCOORD_1", mesh.index());
             let material = primitive.material();
             assert!(material.unlit(), "mesh {} is not shown baked", mesh.index());
-            let texture = material
-                .pbr_metallic_roughness()
-                .base_color_texture()
-                .expect("baked texture");
+            let texture = material.pbr_metallic_roughness().base_color_texture().expect("baked texture");
             assert_eq!(texture.tex_coord(), 1);
             match texture.texture().source().source() {
                 gltf::image::Source::View { mime_type, .. } => assert_eq!(mime_type, "image/png"),
@@ -99,52 +75,25 @@ fn bakes_a_fixture_into_a_lightmapped_glb() {
     let exr = exr::prelude::read_first_rgba_layer_from_file(
         out.join("sphere_on_ground.lightmap0.exr"),
         |size, _| vec![[0f32; 3]; size.width() * size.height()],
-        |pixels, position, (r, g, b, _a): (f32, f32, f32, f32)| {
-            pixels[position.y() * 96 + position.x()] = [r, g, b]
-        },
+        |pixels, position, (r, g, b, _a): (f32, f32, f32, f32)| pixels[position.y() * 96 + position.x()] = [r, g, b],
     );
     assert!(exr.is_ok(), "the EXR lightmap reads back");
 
-    let report: Report =
-        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let report: Report = serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(report.scenes.len(), 1);
     assert!(report.scenes[0].texels.covered > 0);
     assert!(!report.adapter.name.is_empty());
-    assert!(
-        report.scenes[0]
-            .energy
-            .iter()
-            .all(|e| e.invalid_texels == 0)
-    );
-    let names: Vec<&str> = report.scenes[0]
-        .stages
-        .iter()
-        .map(|s| s.stage.as_str())
-        .collect();
+    assert!(report.scenes[0].energy.iter().all(|e| e.invalid_texels == 0));
+    let names: Vec<&str> = report.scenes[0].stages.iter().map(|s| s.stage.as_str()).collect();
     assert_eq!(names, ["import", "unwrap", "texelize", "solve", "export"]);
-    assert!(!out.read_dir().unwrap().any(|e| {
-        e.unwrap()
-            .file_name()
-            .to_string_lossy()
-            .starts_with(".bake")
-    }));
+    assert!(!out.read_dir().unwrap().any(|e| { e.unwrap().file_name().to_string_lossy().starts_with(".bake") }));
 }
 
 #[test]
 fn missing_input_is_named_and_leaves_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let env = fixture("sky_horizon.hdr");
-    let output = bake(
-        dir.path(),
-        &[
-            "nowhere.glb",
-            "--env",
-            env.to_str().unwrap(),
-            "-o",
-            "out",
-            "-q",
-        ],
-    );
+    let output = bake(dir.path(), &["nowhere.glb", "--env", env.to_str().unwrap(), "-o", "out", "-q"]);
     assert_one_line_error(&output, "nowhere.glb");
     assert!(!dir.path().join("out").exists());
 }
@@ -154,17 +103,7 @@ fn a_file_that_is_not_gltf_is_named() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("notes.glb"), "this is not a model").unwrap();
     let env = fixture("sky_horizon.hdr");
-    let output = bake(
-        dir.path(),
-        &[
-            "notes.glb",
-            "--env",
-            env.to_str().unwrap(),
-            "-o",
-            "out",
-            "-q",
-        ],
-    );
+    let output = bake(dir.path(), &["notes.glb", "--env", env.to_str().unwrap(), "-o", "out", "-q"]);
     assert_one_line_error(&output, "notes.glb");
     assert!(!dir.path().join("out").exists());
 }
@@ -173,30 +112,10 @@ fn a_file_that_is_not_gltf_is_named() {
 fn missing_or_unreadable_environment_is_named() {
     let dir = tempfile::tempdir().unwrap();
     let input = fixture("sphere_on_ground.glb");
-    let output = bake(
-        dir.path(),
-        &[
-            input.to_str().unwrap(),
-            "--env",
-            "nosky.exr",
-            "-o",
-            "out",
-            "-q",
-        ],
-    );
+    let output = bake(dir.path(), &[input.to_str().unwrap(), "--env", "nosky.exr", "-o", "out", "-q"]);
     assert_one_line_error(&output, "nosky.exr");
     std::fs::write(dir.path().join("garbage.exr"), [0u8, 1, 2, 3, 4, 5]).unwrap();
-    let output = bake(
-        dir.path(),
-        &[
-            input.to_str().unwrap(),
-            "--env",
-            "garbage.exr",
-            "-o",
-            "out",
-            "-q",
-        ],
-    );
+    let output = bake(dir.path(), &[input.to_str().unwrap(), "--env", "garbage.exr", "-o", "out", "-q"]);
     assert_one_line_error(&output, "garbage.exr");
     assert!(!dir.path().join("out").exists());
 }
@@ -208,35 +127,15 @@ fn a_failed_run_keeps_the_previous_outputs() {
     std::fs::create_dir(&out).unwrap();
     std::fs::write(out.join("sphere_on_ground.glb"), "previous").unwrap();
     let input = fixture("sphere_on_ground.glb");
-    let output = bake(
-        dir.path(),
-        &[
-            input.to_str().unwrap(),
-            "--env",
-            "nosky.exr",
-            "-o",
-            "out",
-            "-q",
-        ],
-    );
+    let output = bake(dir.path(), &[input.to_str().unwrap(), "--env", "nosky.exr", "-o", "out", "-q"]);
     assert_eq!(output.status.code(), Some(2));
-    assert_eq!(
-        std::fs::read_to_string(out.join("sphere_on_ground.glb")).unwrap(),
-        "previous"
-    );
-    assert_eq!(
-        out.read_dir().unwrap().count(),
-        1,
-        "nothing else was left in the output folder"
-    );
+    assert_eq!(std::fs::read_to_string(out.join("sphere_on_ground.glb")).unwrap(), "previous");
+    assert_eq!(out.read_dir().unwrap().count(), 1, "nothing else was left in the output folder");
 }
 
 #[test]
 fn help_explains_every_option() {
-    let output = Command::new(env!("CARGO_BIN_EXE_bake"))
-        .arg("--help")
-        .output()
-        .unwrap();
+    let output = Command::new(env!("CARGO_BIN_EXE_bake")).arg("--help").output().unwrap();
     let help = String::from_utf8_lossy(&output.stdout);
     for option in [
         "--env",

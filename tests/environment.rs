@@ -9,8 +9,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use bake::environment::{
-    EnvLoadOptions, EnvironmentMap, ExrPrecision, Light, LightMode, LightSet, luminance, write_exr,
-    write_hdr,
+    EnvLoadOptions, EnvironmentMap, ExrPrecision, Light, LightMode, LightSet, luminance, write_exr, write_hdr,
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -39,10 +38,7 @@ fn load_err(path: &Path, opts: &EnvLoadOptions) -> String {
 /// The one-line, path-first error format every load error must have.
 fn assert_error_format(msg: &str, path: &Path) {
     let prefix = format!("environment '{}': ", path.display());
-    assert!(
-        msg.starts_with(&prefix),
-        "error does not start with {prefix:?}: {msg}"
-    );
+    assert!(msg.starts_with(&prefix), "error does not start with {prefix:?}: {msg}");
     assert!(!msg.contains('\n'), "error is not one line: {msg:?}");
 }
 
@@ -57,10 +53,7 @@ fn norm(v: [f64; 3]) -> [f64; 3] {
 
 fn angle_deg(a: [f64; 3], b: [f64; 3]) -> f64 {
     let (a, b) = (norm(a), norm(b));
-    (a[0] * b[0] + a[1] * b[1] + a[2] * b[2])
-        .clamp(-1.0, 1.0)
-        .acos()
-        .to_degrees()
+    (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).clamp(-1.0, 1.0).acos().to_degrees()
 }
 
 fn light_energy(l: &Light) -> [f64; 3] {
@@ -84,18 +77,11 @@ fn mean_direction(set: &LightSet) -> [f64; 3] {
 }
 
 fn brightest(set: &LightSet) -> &Light {
-    set.lights
-        .iter()
-        .max_by(|a, b| light_lum_energy(a).total_cmp(&light_lum_energy(b)))
-        .expect("no lights")
+    set.lights.iter().max_by(|a, b| light_lum_energy(a).total_cmp(&light_lum_energy(b))).expect("no lights")
 }
 
 fn rel_err(a: f64, b: f64) -> f64 {
-    if b == 0.0 {
-        a.abs()
-    } else {
-        ((a - b) / b).abs()
-    }
+    if b == 0.0 { a.abs() } else { ((a - b) / b).abs() }
 }
 
 /// Every invariant a light set must satisfy, plus energy conservation to `tol`.
@@ -117,50 +103,24 @@ fn check_light_set(set: &LightSet, what: &str, tol: f64) {
             sum[c] += e[c];
         }
         let len = dot(l.direction, l.direction).sqrt();
-        assert!(
-            (len - 1.0).abs() < 1e-5,
-            "{what}: direction not unit: {:?}",
-            l.direction
-        );
-        assert!(
-            l.solid_angle > 0.0 && l.solid_angle.is_finite(),
-            "{what}: bad Ω {l:?}"
-        );
-        assert!(
-            l.radiance.iter().all(|r| r.is_finite() && *r >= 0.0),
-            "{what}: {l:?}"
-        );
+        assert!((len - 1.0).abs() < 1e-5, "{what}: direction not unit: {:?}", l.direction);
+        assert!(l.solid_angle > 0.0 && l.solid_angle.is_finite(), "{what}: bad Ω {l:?}");
+        assert!(l.radiance.iter().all(|r| r.is_finite() && *r >= 0.0), "{what}: {l:?}");
         assert!(l.radiance != [0.0; 3], "{what}: zero-energy light kept");
     }
     for c in 0..3 {
-        assert!(
-            rel_err(sum[c], set.captured[c]) < 1e-12,
-            "{what}: captured field mismatch"
-        );
+        assert!(rel_err(sum[c], set.captured[c]) < 1e-12, "{what}: captured field mismatch");
     }
     let omega: f64 = set.lights.iter().map(|l| l.solid_angle as f64).sum();
-    assert!(
-        omega <= 4.0 * PI * (1.0 + 1e-5),
-        "{what}: lights cover {omega} sr > 4π"
-    );
+    assert!(omega <= 4.0 * PI * (1.0 + 1e-5), "{what}: lights cover {omega} sr > 4π");
     let requested = set.mode.requested_lights();
-    assert!(
-        set.lights.len() <= requested,
-        "{what}: {} lights > {requested}",
-        set.lights.len()
-    );
+    assert!(set.lights.len() <= requested, "{what}: {} lights > {requested}", set.lights.len());
     if let LightMode::Cube { .. } = set.mode {
-        assert_eq!(
-            set.lights.len() + set.dropped,
-            requested,
-            "{what}: cube light count"
-        );
+        assert_eq!(set.lights.len() + set.dropped, requested, "{what}: cube light count");
     }
 }
 
-const ALL_MODES: [&str; 9] = [
-    "cube:4", "cube:8", "cube:16", "cube:32", "1", "8", "64", "256", "1024",
-];
+const ALL_MODES: [&str; 9] = ["cube:4", "cube:8", "cube:16", "cube:32", "1", "8", "64", "256", "1024"];
 
 fn modes() -> Vec<LightMode> {
     ALL_MODES.iter().map(|s| s.parse().unwrap()).collect()
@@ -182,22 +142,12 @@ fn wide_range_map() -> EnvironmentMap {
     // Make sure both ends of the range are present.
     texels[0] = [1e-3, 3e4, 1.0];
     texels[1] = [3e4, 1e-3, 12.5];
-    EnvironmentMap {
-        width: w,
-        height: h,
-        texels,
-    }
+    EnvironmentMap { width: w, height: h, texels }
 }
 
 fn cap_map(axis: [f32; 3], radius_deg: f64) -> EnvironmentMap {
     let cos_r = radius_deg.to_radians().cos();
-    EnvironmentMap::from_fn(256, 128, move |d| {
-        if dot(d, axis) >= cos_r {
-            [3.0, 2.0, 1.0]
-        } else {
-            [0.0; 3]
-        }
-    })
+    EnvironmentMap::from_fn(256, 128, move |d| if dot(d, axis) >= cos_r { [3.0, 2.0, 1.0] } else { [0.0; 3] })
 }
 
 const SKY: [f32; 3] = [0.4, 0.6, 1.0];
@@ -214,10 +164,7 @@ fn real_captures() -> Vec<PathBuf> {
         if p.is_file() {
             out.push(p);
         } else {
-            println!(
-                "skipped real capture {} (not present on this machine)",
-                p.display()
-            );
+            println!("skipped real capture {} (not present on this machine)", p.display());
         }
     }
     out
@@ -227,37 +174,21 @@ fn real_captures() -> Vec<PathBuf> {
 // round trips and writers
 
 fn assert_round_trip(original: &EnvironmentMap, path: &Path, rel_tol: f32, what: &str) {
-    let loaded =
-        EnvironmentMap::load(path, &default_opts()).unwrap_or_else(|e| panic!("{what}: {e:#}"));
+    let loaded = EnvironmentMap::load(path, &default_opts()).unwrap_or_else(|e| panic!("{what}: {e:#}"));
     let m = &loaded.map;
-    assert_eq!(
-        (m.width, m.height),
-        (original.width, original.height),
-        "{what}: size"
-    );
+    assert_eq!((m.width, m.height), (original.width, original.height), "{what}: size");
     let mut worst = 0.0f32;
     for (a, b) in original.texels.iter().zip(&m.texels) {
         // RGBE shares one exponent per pixel: its error is relative to the pixel's largest
         // channel. EXR errors are per channel.
         let scale_px = a.iter().copied().fold(0.0f32, f32::max);
         for c in 0..3 {
-            let scale = if rel_tol >= 0.005 {
-                scale_px
-            } else {
-                a[c].abs()
-            };
-            let e = if scale == 0.0 {
-                b[c].abs()
-            } else {
-                (a[c] - b[c]).abs() / scale
-            };
+            let scale = if rel_tol >= 0.005 { scale_px } else { a[c].abs() };
+            let e = if scale == 0.0 { b[c].abs() } else { (a[c] - b[c]).abs() / scale };
             worst = worst.max(e);
         }
     }
-    assert!(
-        worst <= rel_tol,
-        "{what}: worst relative error {worst:e} > {rel_tol:e}"
-    );
+    assert!(worst <= rel_tol, "{what}: worst relative error {worst:e} > {rel_tol:e}");
 }
 
 #[test]
@@ -310,11 +241,7 @@ fn writers_are_deterministic() {
         let (a, b) = (tmp(&format!("det_{i}_a")), tmp(&format!("det_{i}_b")));
         write(&a).unwrap();
         write(&b).unwrap();
-        assert_eq!(
-            std::fs::read(&a).unwrap(),
-            std::fs::read(&b).unwrap(),
-            "writer {i}"
-        );
+        assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap(), "writer {i}");
     }
     let _ = map;
 }
@@ -330,32 +257,17 @@ fn half_exr_clamps_values_beyond_half_range() {
 
 #[test]
 fn hdr_writer_handles_values_rgbe_cannot_store() {
-    let texels = vec![
-        [1e-40, 0.0, 0.0],
-        [-1.0, 2.0, f32::NAN],
-        [3e38, 1.0, 1.0],
-        [0.5, 0.25, 0.125],
-    ];
-    let map = EnvironmentMap {
-        width: 4,
-        height: 1,
-        texels,
-    };
+    let texels = vec![[1e-40, 0.0, 0.0], [-1.0, 2.0, f32::NAN], [3e38, 1.0, 1.0], [0.5, 0.25, 0.125]];
+    let map = EnvironmentMap { width: 4, height: 1, texels };
     let p = tmp("rgbe_range.hdr");
     write_hdr(&map, &p).unwrap();
     let bytes = std::fs::read(&p).unwrap();
     // Back through the image crate directly: the map is 4×1, not an environment.
-    let img = image::load_from_memory_with_format(&bytes, image::ImageFormat::Hdr)
-        .unwrap()
-        .into_rgb32f();
+    let img = image::load_from_memory_with_format(&bytes, image::ImageFormat::Hdr).unwrap().into_rgb32f();
     let px: Vec<[f32; 3]> = img.pixels().map(|p| p.0).collect();
     assert_eq!(px[0], [0.0; 3]);
     assert_eq!(px[1][0], 0.0);
-    assert!(
-        (px[1][1] - 2.0).abs() < 0.02 && px[1][2] == 0.0,
-        "{:?}",
-        px[1]
-    );
+    assert!((px[1][1] - 2.0).abs() < 0.02 && px[1][2] == 0.0, "{:?}", px[1]);
     assert!(px[2][0] > 1e38 && px[2][0].is_finite(), "{:?}", px[2]);
     assert_eq!(px[3], [0.5, 0.25, 0.125]);
 }
@@ -384,11 +296,7 @@ fn radiance_exposure_header_is_divided_out() {
     std::fs::write(&p, patched).unwrap();
     let loaded = EnvironmentMap::load(&p, &default_opts()).unwrap();
     assert_eq!(loaded.map.texels[0], [1.0, 2.0, 4.0]);
-    assert!(
-        loaded.notices.iter().any(|n| n.contains("EXPOSURE")),
-        "{:?}",
-        loaded.notices
-    );
+    assert!(loaded.notices.iter().any(|n| n.contains("EXPOSURE")), "{:?}", loaded.notices);
 }
 
 #[test]
@@ -411,11 +319,7 @@ mod exr_files {
     use super::*;
     use exr::prelude::*;
 
-    pub fn write_channels(
-        path: &Path,
-        size: (usize, usize),
-        channels: Vec<AnyChannel<FlatSamples>>,
-    ) {
+    pub fn write_channels(path: &Path, size: (usize, usize), channels: Vec<AnyChannel<FlatSamples>>) {
         let layer = Layer::new(
             size,
             LayerAttributes::default(),
@@ -433,22 +337,12 @@ mod exr_files {
     fn single_channel_y_loads_as_grey_with_notice() {
         let p = tmp("grey_y.exr");
         let y = ramp(16 * 8, 0.5);
-        write_channels(
-            &p,
-            (16, 8),
-            vec![AnyChannel::new("Y", FlatSamples::F32(y.clone()))],
-        );
+        write_channels(&p, (16, 8), vec![AnyChannel::new("Y", FlatSamples::F32(y.clone()))]);
         let l = EnvironmentMap::load(&p, &default_opts()).unwrap();
         for (t, v) in l.map.texels.iter().zip(&y) {
             assert_eq!(*t, [*v; 3]);
         }
-        assert!(
-            l.notices
-                .iter()
-                .any(|n| n.contains("'Y'") && n.contains("grey")),
-            "{:?}",
-            l.notices
-        );
+        assert!(l.notices.iter().any(|n| n.contains("'Y'") && n.contains("grey")), "{:?}", l.notices);
     }
 
     #[test]
@@ -458,19 +352,12 @@ mod exr_files {
         write_channels(
             &p,
             (8, 4),
-            vec![AnyChannel::new(
-                "L",
-                FlatSamples::F16(z.iter().map(|&v| f16::from_f32(v)).collect()),
-            )],
+            vec![AnyChannel::new("L", FlatSamples::F16(z.iter().map(|&v| f16::from_f32(v)).collect()))],
         );
         let l = EnvironmentMap::load(&p, &default_opts()).unwrap();
         assert_eq!(l.map.texels[3], [z[3]; 3]);
         let p = tmp("grey_custom.exr");
-        write_channels(
-            &p,
-            (8, 4),
-            vec![AnyChannel::new("intensity", FlatSamples::F32(z.clone()))],
-        );
+        write_channels(&p, (8, 4), vec![AnyChannel::new("intensity", FlatSamples::F32(z.clone()))]);
         let l = EnvironmentMap::load(&p, &default_opts()).unwrap();
         assert_eq!(l.map.texels[7], [z[7]; 3]);
     }
@@ -491,21 +378,14 @@ mod exr_files {
             ],
         );
         let m = EnvironmentMap::load(&p, &default_opts()).unwrap().map;
-        assert_eq!(
-            m.texels[10],
-            [ramp(n, 1.0)[10], ramp(n, 2.0)[10], ramp(n, 3.0)[10]]
-        );
+        assert_eq!(m.texels[10], [ramp(n, 1.0)[10], ramp(n, 2.0)[10], ramp(n, 3.0)[10]]);
 
         let p = tmp("u32.exr");
         let u = |k: u32| FlatSamples::U32((0..n as u32).map(|i| i * k).collect());
         write_channels(
             &p,
             (16, 8),
-            vec![
-                AnyChannel::new("R", u(1)),
-                AnyChannel::new("G", u(2)),
-                AnyChannel::new("B", u(3)),
-            ],
+            vec![AnyChannel::new("R", u(1)), AnyChannel::new("G", u(2)), AnyChannel::new("B", u(3))],
         );
         let m = EnvironmentMap::load(&p, &default_opts()).unwrap().map;
         assert_eq!(m.texels[5], [5.0, 10.0, 15.0]);
@@ -530,11 +410,7 @@ mod exr_files {
         );
         let l = EnvironmentMap::load(&p, &default_opts()).unwrap();
         assert_eq!(l.map.texels[0], [1.0, 2.0, 3.0]);
-        assert!(
-            l.notices.iter().any(|s| s.contains("'diffuse'")),
-            "{:?}",
-            l.notices
-        );
+        assert!(l.notices.iter().any(|s| s.contains("'diffuse'")), "{:?}", l.notices);
     }
 
     #[test]
@@ -546,10 +422,7 @@ mod exr_files {
             size,
             LayerAttributes::named("depth"),
             Encoding::SMALL_LOSSLESS,
-            AnyChannels::sort(SmallVec::from_vec(vec![AnyChannel::new(
-                "Z",
-                FlatSamples::F32(vec![5.0; n]),
-            )])),
+            AnyChannels::sort(SmallVec::from_vec(vec![AnyChannel::new("Z", FlatSamples::F32(vec![5.0; n]))])),
         );
         let beauty = Layer::new(
             size,
@@ -565,11 +438,7 @@ mod exr_files {
         image.write().to_file(&p).unwrap();
         let l = EnvironmentMap::load(&p, &default_opts()).unwrap();
         assert_eq!(l.map.texels[3], [0.5, 0.25, 0.125]);
-        assert!(
-            l.notices.iter().any(|s| s.contains("'beauty'")),
-            "{:?}",
-            l.notices
-        );
+        assert!(l.notices.iter().any(|s| s.contains("'beauty'")), "{:?}", l.notices);
     }
 
     #[test]
@@ -598,11 +467,7 @@ mod exr_files {
                 blocks: Blocks::Tiles(Vec2(8, 8)),
                 line_order: LineOrder::Increasing,
             },
-            AnyChannels::sort(SmallVec::from_vec(vec![
-                chan("R", 1.0),
-                chan("G", 2.0),
-                chan("B", 3.0),
-            ])),
+            AnyChannels::sort(SmallVec::from_vec(vec![chan("R", 1.0), chan("G", 2.0), chan("B", 3.0)])),
         );
         Image::from_layer(layer).write().to_file(&p).unwrap();
         let m = EnvironmentMap::load(&p, &default_opts()).unwrap().map;
@@ -614,11 +479,7 @@ mod exr_files {
     fn file_without_colour_channels_is_rejected() {
         let p = tmp("no_colour.exr");
         let n = 16 * 8;
-        write_channels(
-            &p,
-            (16, 8),
-            vec![AnyChannel::new("A", FlatSamples::F32(vec![1.0; n]))],
-        );
+        write_channels(&p, (16, 8), vec![AnyChannel::new("A", FlatSamples::F32(vec![1.0; n]))]);
         let msg = load_err(&p, &default_opts());
         assert_error_format(&msg, &p);
         assert!(msg.contains("no colour channels"), "{msg}");
@@ -642,11 +503,7 @@ mod exr_files {
         write_channels(
             path,
             (w, h),
-            vec![
-                AnyChannel::new("R", ch(0)),
-                AnyChannel::new("G", ch(1)),
-                AnyChannel::new("B", ch(2)),
-            ],
+            vec![AnyChannel::new("R", ch(0)), AnyChannel::new("G", ch(1)), AnyChannel::new("B", ch(2))],
         );
     }
 
@@ -662,10 +519,7 @@ mod exr_files {
         let msg = load_err(&p, &default_opts());
         assert_error_format(&msg, &p);
         assert!(msg.contains("4 non-finite"), "{msg}");
-        assert!(
-            msg.contains("(3,0)") && msg.contains("(1,1)") && msg.contains("(8,2)"),
-            "{msg}"
-        );
+        assert!(msg.contains("(3,0)") && msg.contains("(1,1)") && msg.contains("(8,2)"), "{msg}");
     }
 
     #[test]
@@ -678,23 +532,11 @@ mod exr_files {
             41 => [500.0, 1.0, 1.0],
             _ => [1.0, 2.0, 3.0],
         });
-        let l = EnvironmentMap::load(
-            &p,
-            &EnvLoadOptions {
-                clamp_nonfinite: true,
-            },
-        )
-        .unwrap();
+        let l = EnvironmentMap::load(&p, &EnvLoadOptions { clamp_nonfinite: true }).unwrap();
         assert_eq!(l.map.texels[3], [0.0, 1.0, 1.0]);
         assert_eq!(l.map.texels[17], [1.0, 500.0, 0.0]);
         assert_eq!(l.map.texels[40], [1.0, 1.0, 0.0]);
-        assert!(
-            l.notices
-                .iter()
-                .any(|n| n.starts_with("warning") && n.contains("4 non-finite")),
-            "{:?}",
-            l.notices
-        );
+        assert!(l.notices.iter().any(|n| n.starts_with("warning") && n.contains("4 non-finite")), "{:?}", l.notices);
     }
 
     #[test]
@@ -711,11 +553,7 @@ mod exr_files {
         assert_eq!(l.map.texels[6], [0.0, 0.0, 1.0]);
         assert_eq!(l.map.texels[70], [1.0, 1.0, 0.0]);
         assert!(l.map.texels.iter().flatten().all(|v| *v >= 0.0));
-        let n = l
-            .notices
-            .iter()
-            .find(|n| n.contains("negative"))
-            .expect("no notice");
+        let n = l.notices.iter().find(|n| n.contains("negative")).expect("no notice");
         assert!(n.contains("4 negative"), "{n}");
         assert!(n.contains("energy removed"), "{n}");
     }
@@ -736,21 +574,14 @@ mod exr_files {
         );
         layer.attributes.layer_position = Vec2(4, 2);
         let display = exr::meta::attribute::IntegerBounds::new((0, 0), (32, 16));
-        Image::new(ImageAttributes::new(display), layer)
-            .write()
-            .to_file(&p)
-            .unwrap();
+        Image::new(ImageAttributes::new(display), layer).write().to_file(&p).unwrap();
         let l = EnvironmentMap::load(&p, &default_opts()).unwrap();
         assert_eq!((l.map.width, l.map.height), (32, 16));
         assert_eq!(l.map.texels[0], [0.0; 3]);
         assert_eq!(l.map.texels[2 * 32 + 4], [1.0, 2.0, 3.0]);
         assert_eq!(l.map.texels[5 * 32 + 11], [1.0, 2.0, 3.0]);
         assert_eq!(l.map.texels[6 * 32 + 11], [0.0; 3]);
-        assert!(
-            l.notices.iter().any(|n| n.contains("display window")),
-            "{:?}",
-            l.notices
-        );
+        assert!(l.notices.iter().any(|n| n.contains("display window")), "{:?}", l.notices);
     }
 
     #[test]
@@ -781,11 +612,7 @@ mod exr_files {
         // AP0 white is D60: same luminance, slightly warmer than Rec. 709's D65 white.
         assert!((luminance(t) - 1.0).abs() < 2e-3, "{t:?}");
         assert!(t[0] > t[2], "{t:?}");
-        assert!(
-            l.notices.iter().any(|n| n.contains("Rec. 709")),
-            "{:?}",
-            l.notices
-        );
+        assert!(l.notices.iter().any(|n| n.contains("Rec. 709")), "{:?}", l.notices);
     }
 
     #[test]
@@ -815,18 +642,13 @@ fn text_file_is_not_an_environment() {
     std::fs::write(&p, "just some text\nnothing to see\n").unwrap();
     let msg = load_err(&p, &default_opts());
     assert_error_format(&msg, &p);
-    assert!(
-        msg.contains("not an OpenEXR or Radiance HDR file") && msg.contains("text"),
-        "{msg}"
-    );
+    assert!(msg.contains("not an OpenEXR or Radiance HDR file") && msg.contains("text"), "{msg}");
 }
 
 #[test]
 fn png_is_not_an_environment() {
     let p = tmp("picture.hdr");
-    image::RgbImage::from_pixel(8, 4, image::Rgb([10, 20, 30]))
-        .save_with_format(&p, image::ImageFormat::Png)
-        .unwrap();
+    image::RgbImage::from_pixel(8, 4, image::Rgb([10, 20, 30])).save_with_format(&p, image::ImageFormat::Png).unwrap();
     let msg = load_err(&p, &default_opts());
     assert_error_format(&msg, &p);
     assert!(msg.contains("PNG"), "{msg}");
@@ -892,25 +714,9 @@ fn real_captures_load_with_negative_texel_notice() {
     for p in real_captures() {
         let l = EnvironmentMap::load(&p, &default_opts()).unwrap_or_else(|e| panic!("{e:#}"));
         assert_eq!((l.map.width, l.map.height), (1024, 512), "{}", p.display());
-        assert!(
-            l.map
-                .texels
-                .iter()
-                .flatten()
-                .all(|v| v.is_finite() && *v >= 0.0)
-        );
-        assert!(
-            l.notices.iter().any(|n| n.contains("negative texel")),
-            "{}: {:?}",
-            p.display(),
-            l.notices
-        );
-        assert!(
-            l.map.peak() > 10.0,
-            "{}: implausible peak {}",
-            p.display(),
-            l.map.peak()
-        );
+        assert!(l.map.texels.iter().flatten().all(|v| v.is_finite() && *v >= 0.0));
+        assert!(l.notices.iter().any(|n| n.contains("negative texel")), "{}: {:?}", p.display(), l.notices);
+        assert!(l.map.peak() > 10.0, "{}: implausible peak {}", p.display(), l.map.peak());
     }
 }
 
@@ -970,11 +776,7 @@ fn extraction_is_fast_on_a_1024_map() {
 #[test]
 fn pixel_direction_and_sample_invert_each_other() {
     let (w, h) = (64u32, 32u32);
-    let map = EnvironmentMap {
-        width: w,
-        height: h,
-        texels: (0..w * h).map(|i| [i as f32, 0.0, 0.0]).collect(),
-    };
+    let map = EnvironmentMap { width: w, height: h, texels: (0..w * h).map(|i| [i as f32, 0.0, 0.0]).collect() };
     for row in 0..h {
         for col in 0..w {
             let d = map.pixel_direction(col, row);
@@ -1004,21 +806,14 @@ fn direction_convention_matches_the_design() {
         let d = [r * a.cos(), y, r * a.sin()];
         let u = 0.5 + d[2].atan2(d[0]) / (2.0 * PI);
         let t = d[1].acos() / PI;
-        let expect = (
-            ((u * 37.0).floor() as u32) % 37,
-            ((t * 19.0).floor() as u32).min(18),
-        );
+        let expect = (((u * 37.0).floor() as u32) % 37, ((t * 19.0).floor() as u32).min(18));
         assert_eq!(map.pixel_of(d.map(|v| v as f32)), expect, "{d:?}");
     }
     let map = EnvironmentMap::from_fn(8, 4, |_| [0.0; 3]);
     let d = map.pixel_direction(4, 1);
     let theta = (1.5f64 / 4.0) * PI;
     let phi = (4.5f64 / 8.0 - 0.5) * 2.0 * PI;
-    let expect = [
-        theta.sin() * phi.cos(),
-        theta.cos(),
-        theta.sin() * phi.sin(),
-    ];
+    let expect = [theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()];
     for c in 0..3 {
         assert!((d[c] as f64 - expect[c]).abs() < 1e-6);
     }
@@ -1062,22 +857,10 @@ fn energy_maps() -> Vec<(&'static str, EnvironmentMap, Option<[f64; 3]>)> {
     let l = [0.3f32, 0.5, 0.9];
     let four_pi = l.map(|v| v as f64 * 4.0 * PI);
     vec![
-        (
-            "constant 1×1",
-            EnvironmentMap::from_fn(1, 1, |_| l),
-            Some(four_pi),
-        ),
+        ("constant 1×1", EnvironmentMap::from_fn(1, 1, |_| l), Some(four_pi)),
         ("constant 8×4", EnvironmentMap::constant(l), Some(four_pi)),
-        (
-            "horizon",
-            EnvironmentMap::horizon(l),
-            Some(l.map(|v| v as f64 * 2.0 * PI)),
-        ),
-        (
-            "sun and sky 1e5",
-            EnvironmentMap::sun_and_sky(SKY, sun_dir(), 1e5, 1.5f32.to_radians()),
-            None,
-        ),
+        ("horizon", EnvironmentMap::horizon(l), Some(l.map(|v| v as f64 * 2.0 * PI))),
+        ("sun and sky 1e5", EnvironmentMap::sun_and_sky(SKY, sun_dir(), 1e5, 1.5f32.to_radians()), None),
     ]
 }
 
@@ -1090,10 +873,7 @@ fn energy_is_conserved_for_every_mode_and_map() {
             check_light_set(&set, &what, 1e-5);
             if let Some(exact) = exact {
                 for c in 0..3 {
-                    assert!(
-                        rel_err(set.map_integral[c], exact[c]) < 1e-9,
-                        "{what}: integral"
-                    );
+                    assert!(rel_err(set.map_integral[c], exact[c]) < 1e-9, "{what}: integral");
                 }
             }
         }
@@ -1102,47 +882,28 @@ fn energy_is_conserved_for_every_mode_and_map() {
 
 #[test]
 fn budgets_fill_even_on_tiny_constant_maps() {
-    for map in [
-        EnvironmentMap::from_fn(1, 1, |_| [1.0; 3]),
-        EnvironmentMap::constant([1.0; 3]),
-    ] {
+    for map in [EnvironmentMap::from_fn(1, 1, |_| [1.0; 3]), EnvironmentMap::constant([1.0; 3])] {
         for k in [1u32, 8, 64, 256, 1024] {
             let set = LightSet::extract(&map, LightMode::Budget { count: k }, 0.0, 1.0);
-            assert_eq!(
-                set.lights.len(),
-                k as usize,
-                "{}×{} K={k}",
-                map.width,
-                map.height
-            );
+            assert_eq!(set.lights.len(), k as usize, "{}×{} K={k}", map.width, map.height);
             assert!(set.notes.is_empty(), "{:?}", set.notes);
             // A uniform sphere split into K lights: none should be huge.
             let max_omega = set.lights.iter().map(|l| l.solid_angle).fold(0.0, f32::max) as f64;
-            assert!(
-                max_omega < 8.0 * 4.0 * PI / k as f64,
-                "K={k}: largest light {max_omega} sr"
-            );
+            assert!(max_omega < 8.0 * 4.0 * PI / k as f64, "K={k}: largest light {max_omega} sr");
         }
     }
 }
 
 #[test]
 fn cube_lights_on_a_constant_map_have_its_radiance() {
-    for map in [
-        EnvironmentMap::from_fn(1, 1, |_| [2.0; 3]),
-        EnvironmentMap::constant([2.0; 3]),
-    ] {
+    for map in [EnvironmentMap::from_fn(1, 1, |_| [2.0; 3]), EnvironmentMap::constant([2.0; 3])] {
         for n in [4u32, 16, 32] {
             let set = LightSet::extract(&map, LightMode::Cube { face_size: n }, 0.0, 1.0);
             assert_eq!(set.lights.len(), 6 * (n * n) as usize);
             assert_eq!(set.dropped, 0);
             for l in &set.lights {
                 let r = l.radiance[0];
-                assert!(
-                    (r - 2.0).abs() < 0.2,
-                    "cube:{n}: texel radiance {r} (Ω {})",
-                    l.solid_angle
-                );
+                assert!((r - 2.0).abs() < 0.2, "cube:{n}: texel radiance {r} (Ω {})", l.solid_angle);
             }
         }
     }
@@ -1154,18 +915,12 @@ fn horizon_lights_stay_above_the_horizon() {
     for mode in modes() {
         let set = LightSet::extract(&map, mode, 0.0, 1.0);
         for l in &set.lights {
-            assert!(
-                l.direction[1] > 0.0,
-                "{mode}: light below the horizon {l:?}"
-            );
+            assert!(l.direction[1] > 0.0, "{mode}: light below the horizon {l:?}");
         }
         let omega: f64 = set.lights.iter().map(|l| l.solid_angle as f64).sum();
         if mode != (LightMode::Budget { count: 1 }) {
             // Lights do not claim the black ground: they cover the sky's 2π.
-            assert!(
-                rel_err(omega, 2.0 * PI) < 1e-5,
-                "{mode}: lights cover {omega} sr"
-            );
+            assert!(rel_err(omega, 2.0 * PI) < 1e-5, "{mode}: lights cover {omega} sr");
         }
         if let LightMode::Cube { face_size } = mode {
             assert_eq!(set.dropped, 3 * (face_size * face_size) as usize, "{mode}");
@@ -1188,24 +943,15 @@ fn black_map_gives_no_lights() {
 
 #[test]
 fn cap_lights_point_at_their_axis() {
-    let axes: [[f32; 3]; 6] = [
-        [1.0, 0.0, 0.0],
-        [0.0, 1.0, 0.0],
-        [0.0, 0.0, 1.0],
-        [-1.0, 0.0, 0.0],
-        [0.0, -1.0, 0.0],
-        [0.0, 0.0, -1.0],
-    ];
+    let axes: [[f32; 3]; 6] =
+        [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]];
     for axis in axes {
         let map = cap_map(axis, 10.0);
         for mode in modes() {
             let set = LightSet::extract(&map, mode, 0.0, 1.0);
             check_light_set(&set, &format!("cap {axis:?} {mode}"), 1e-5);
             let a = angle_deg(mean_direction(&set), axis.map(|v| v as f64));
-            assert!(
-                a < 2.0,
-                "cap {axis:?}, {mode}: mean light direction {a:.2}° off"
-            );
+            assert!(a < 2.0, "cap {axis:?}, {mode}: mean light direction {a:.2}° off");
             // No light may point away from a 10° cap.
             for l in &set.lights {
                 let off = angle_deg(l.direction.map(|v| v as f64), axis.map(|v| v as f64));
@@ -1223,15 +969,9 @@ fn rotation_by_90_degrees_turns_plus_x_to_minus_z() {
         let set0 = LightSet::extract(&map, mode, 0.0, 1.0);
         let set = LightSet::extract(&map, mode, 90.0, 1.0);
         let d = brightest(&set).direction.map(|v| v as f64);
-        assert!(
-            angle_deg(d, [0.0, 0.0, -1.0]) < 2.0,
-            "{mode}: rotated sun at {d:?}"
-        );
+        assert!(angle_deg(d, [0.0, 0.0, -1.0]) < 2.0, "{mode}: rotated sun at {d:?}");
         let d = mean_direction(&set);
-        assert!(
-            angle_deg(d, [0.0, 0.0, -1.0]) < 1.0,
-            "{mode}: rotated mean at {d:?}"
-        );
+        assert!(angle_deg(d, [0.0, 0.0, -1.0]) < 1.0, "{mode}: rotated mean at {d:?}");
         // A rigid rotation of the unrotated set: same energies, rotated directions.
         assert_eq!(set0.lights.len(), set.lights.len());
         for (a, b) in set0.lights.iter().zip(&set.lights) {
@@ -1257,21 +997,12 @@ fn intensity_scales_energy() {
         let one = LightSet::extract(&map, mode, 0.0, 1.0);
         let two = LightSet::extract(&map, mode, 0.0, 2.0);
         for c in 0..3 {
-            assert!(
-                rel_err(two.captured[c], 2.0 * one.captured[c]) < 1e-6,
-                "{mode}"
-            );
-            assert!(
-                rel_err(two.map_integral[c], 2.0 * one.map_integral[c]) < 1e-12,
-                "{mode}"
-            );
+            assert!(rel_err(two.captured[c], 2.0 * one.captured[c]) < 1e-6, "{mode}");
+            assert!(rel_err(two.map_integral[c], 2.0 * one.map_integral[c]) < 1e-12, "{mode}");
         }
         check_light_set(&two, &format!("intensity 2, {mode}"), 1e-5);
         let zero = LightSet::extract(&map, mode, 0.0, 0.0);
-        assert!(
-            zero.lights.is_empty() && zero.captured == [0.0; 3],
-            "{mode}"
-        );
+        assert!(zero.lights.is_empty() && zero.captured == [0.0; 3], "{mode}");
     }
 }
 
@@ -1294,42 +1025,23 @@ fn budget_64_keeps_the_sun_as_one_light_and_cube_4_cannot() {
     check_light_set(&set, "sun, 64", 1e-5);
     let sun = brightest(&set);
     let e = light_lum_energy(sun);
-    assert!(
-        e >= 0.99 * e_sun && e <= 1.01 * e_sun,
-        "sun light holds {} of the sun",
-        e / e_sun
-    );
+    assert!(e >= 0.99 * e_sun && e <= 1.01 * e_sun, "sun light holds {} of the sun", e / e_sun);
     let off = angle_deg(sun.direction.map(|v| v as f64), sun_dir().map(|v| v as f64));
-    assert!(
-        off <= radius.to_degrees() as f64,
-        "sun light {off}° from the sun"
-    );
+    assert!(off <= radius.to_degrees() as f64, "sun light {off}° from the sun");
     let disc = 2.0 * PI * (1.0 - (radius as f64).cos());
-    assert!(
-        (sun.solid_angle as f64) < 3.0 * disc,
-        "sun light Ω {} vs disc {disc}",
-        sun.solid_angle
-    );
+    assert!((sun.solid_angle as f64) < 3.0 * disc, "sun light Ω {} vs disc {disc}", sun.solid_angle);
 
     let cube = LightSet::extract(&map, LightMode::Cube { face_size: 4 }, 0.0, 1.0);
     let csun = brightest(&cube);
     let ratio = csun.solid_angle / sun.solid_angle;
-    assert!(
-        ratio > 10.0,
-        "cube:4's brightest light is only {ratio}× the budget's sun light"
-    );
+    assert!(ratio > 10.0, "cube:4's brightest light is only {ratio}× the budget's sun light");
 }
 
 #[test]
 fn sun_stays_one_light_anywhere_on_the_sphere() {
     let radius = 1.5f32.to_radians();
     // On the map's seam (−X), near the zenith, at the zenith, below the horizon.
-    for dir in [
-        [-1.0f32, 0.1, 0.02],
-        [0.05, 1.0, 0.1],
-        [0.0, 1.0, 0.0],
-        [0.3, -0.4, 0.8],
-    ] {
+    for dir in [[-1.0f32, 0.1, 0.02], [0.05, 1.0, 0.1], [0.0, 1.0, 0.0], [0.3, -0.4, 0.8]] {
         let d = norm(dir.map(|v| v as f64)).map(|v| v as f32);
         let map = EnvironmentMap::sun_and_sky(SKY, d, 1e5, radius);
         let e_sun = sun_energy(&map, d, radius);
@@ -1337,15 +1049,9 @@ fn sun_stays_one_light_anywhere_on_the_sphere() {
             let set = LightSet::extract(&map, LightMode::Budget { count: k }, 0.0, 1.0);
             let sun = brightest(&set);
             let frac = light_lum_energy(sun) / e_sun;
-            assert!(
-                (0.99..=1.01).contains(&frac),
-                "sun at {d:?}, K={k}: light holds {frac}"
-            );
+            assert!((0.99..=1.01).contains(&frac), "sun at {d:?}, K={k}: light holds {frac}");
             let off = angle_deg(sun.direction.map(|v| v as f64), d.map(|v| v as f64));
-            assert!(
-                off <= radius.to_degrees() as f64,
-                "sun at {d:?}, K={k}: {off}° off"
-            );
+            assert!(off <= radius.to_degrees() as f64, "sun at {d:?}, K={k}: {off}° off");
         }
     }
 }
@@ -1356,17 +1062,9 @@ fn dim_uniform_sky_gets_large_lights_around_a_bright_sun() {
     let map = EnvironmentMap::sun_and_sky(SKY, sun_dir(), 1e5, radius);
     let set = LightSet::extract(&map, LightMode::Budget { count: 64 }, 0.0, 1.0);
     let sun = brightest(&set);
-    let sky_lights: Vec<&Light> = set
-        .lights
-        .iter()
-        .filter(|l| !std::ptr::eq(*l, sun))
-        .collect();
-    let mean_sky_omega: f64 =
-        sky_lights.iter().map(|l| l.solid_angle as f64).sum::<f64>() / sky_lights.len() as f64;
-    assert!(
-        mean_sky_omega > 50.0 * sun.solid_angle as f64,
-        "sky lights too small"
-    );
+    let sky_lights: Vec<&Light> = set.lights.iter().filter(|l| !std::ptr::eq(*l, sun)).collect();
+    let mean_sky_omega: f64 = sky_lights.iter().map(|l| l.solid_angle as f64).sum::<f64>() / sky_lights.len() as f64;
+    assert!(mean_sky_omega > 50.0 * sun.solid_angle as f64, "sky lights too small");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1383,21 +1081,10 @@ fn light_mode_parses_from_cli_strings_and_displays_back() {
         assert_eq!(s.parse::<LightMode>().unwrap(), m);
         assert_eq!(m.to_string(), s);
     }
-    for bad in [
-        "", "cube", "cube:", "cube:0", "cube:-1", "0", "-8", "12.5", "1e3", "auto", "sphere:8",
-    ] {
+    for bad in ["", "cube", "cube:", "cube:0", "cube:-1", "0", "-8", "12.5", "1e3", "auto", "sphere:8"] {
         let e = bad.parse::<LightMode>().unwrap_err().to_string();
-        assert!(
-            e.contains(&format!("'{bad}'")) && e.contains("cube:N"),
-            "{bad:?}: {e}"
-        );
+        assert!(e.contains(&format!("'{bad}'")) && e.contains("cube:N"), "{bad:?}: {e}");
     }
     assert_eq!(LightMode::default(), LightMode::Budget { count: 1024 });
-    assert_eq!(
-        LightMode::default()
-            .to_string()
-            .parse::<LightMode>()
-            .unwrap(),
-        LightMode::default()
-    );
+    assert_eq!(LightMode::default().to_string().parse::<LightMode>().unwrap(), LightMode::default());
 }

@@ -5,8 +5,7 @@
 fn committed_fixtures_match_their_generators() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures");
     for (name, bytes) in bake::fixtures::files().unwrap() {
-        let committed =
-            std::fs::read(dir.join(&name)).unwrap_or_else(|e| panic!("fixtures/{name}: {e}"));
+        let committed = std::fs::read(dir.join(&name)).unwrap_or_else(|e| panic!("fixtures/{name}: {e}"));
         assert!(
             committed == bytes,
             "fixtures/{name} differs from its generator: run `cargo run --release --example make_fixtures`"

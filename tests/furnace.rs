@@ -11,32 +11,16 @@ fn sphere_under_constant_sky_is_lit_uniformly_at_l() {
     let gpu = common::gpu();
     let radiance = 1.7;
     let mut builder = SceneBuilder::new();
-    builder.object(
-        "sphere",
-        &MeshData::sphere(1.0, 48, 24),
-        [0.8, 0.8, 0.8, 1.0],
-        [0.0; 3],
-        Placement::default(),
-    );
-    let lights = common::lights(
-        &EnvironmentMap::constant([radiance; 3]),
-        LightMode::Cube { face_size: 32 },
-    );
+    builder.object("sphere", &MeshData::sphere(1.0, 48, 24), [0.8, 0.8, 0.8, 1.0], [0.0; 3], Placement::default());
+    let lights = common::lights(&EnvironmentMap::constant([radiance; 3]), LightMode::Cube { face_size: 32 });
     let baked = common::bake(&gpu, &builder, &lights, &common::options(128));
     let mut worst: f32 = 0.0;
     for (texel, value) in common::values_of(&baked, 0) {
         let error = (value / radiance - 1.0).abs();
         worst = worst.max(error);
-        assert!(
-            error < 0.01,
-            "texel at {:?} has L_lm {value}, expected {radiance} within 1%",
-            texel.position
-        );
+        assert!(error < 0.01, "texel at {:?} has L_lm {value}, expected {radiance} within 1%", texel.position);
     }
-    eprintln!(
-        "{} texels, worst relative error {worst:.5}",
-        baked.texels.texels.len()
-    );
+    eprintln!("{} texels, worst relative error {worst:.5}", baked.texels.texels.len());
 }
 
 #[test]
@@ -45,17 +29,8 @@ fn furnace_holds_for_a_box_with_hard_edges() {
     // positions and normals, or they go dark.
     let gpu = common::gpu();
     let mut builder = SceneBuilder::new();
-    builder.object(
-        "box",
-        &MeshData::cuboid([1.0, 2.0, 0.5]),
-        [0.5, 0.5, 0.5, 1.0],
-        [0.0; 3],
-        Placement::default(),
-    );
-    let lights = common::lights(
-        &EnvironmentMap::constant([1.0; 3]),
-        LightMode::Cube { face_size: 16 },
-    );
+    builder.object("box", &MeshData::cuboid([1.0, 2.0, 0.5]), [0.5, 0.5, 0.5, 1.0], [0.0; 3], Placement::default());
+    let lights = common::lights(&EnvironmentMap::constant([1.0; 3]), LightMode::Cube { face_size: 16 });
     let baked = common::bake(&gpu, &builder, &lights, &common::options(96));
     for (texel, value) in common::values_of(&baked, 0) {
         assert!(

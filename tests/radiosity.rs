@@ -11,22 +11,11 @@ use bake::progress::Silent;
 use glam::{Quat, Vec3};
 
 /// Bakes a scene lit only by its emitters.
-fn bake_emitters(
-    builder: &SceneBuilder,
-    atlas: u32,
-    tweak: impl Fn(&mut BakeOptions),
-) -> bake::Baked {
+fn bake_emitters(builder: &SceneBuilder, atlas: u32, tweak: impl Fn(&mut BakeOptions)) -> bake::Baked {
     let gpu = common::gpu();
     let mut options = common::options(atlas);
     tweak(&mut options);
-    let baked = bake::bake_scene(
-        &gpu,
-        common::scene(builder, "room"),
-        None,
-        &options,
-        &mut Silent,
-    )
-    .unwrap();
+    let baked = bake::bake_scene(&gpu, common::scene(builder, "room"), None, &options, &mut Silent).unwrap();
     common::assert_valid(&baked);
     baked
 }
@@ -49,26 +38,11 @@ fn room(walls: [(f32, f32); 6]) -> SceneBuilder {
     let mut builder = SceneBuilder::new();
     let placements = [
         (Quat::IDENTITY, Vec3::new(0.0, -1.0, 0.0)),
-        (
-            Quat::from_rotation_x(180f32.to_radians()),
-            Vec3::new(0.0, 1.0, 0.0),
-        ),
-        (
-            Quat::from_rotation_z(-90f32.to_radians()),
-            Vec3::new(-1.0, 0.0, 0.0),
-        ),
-        (
-            Quat::from_rotation_z(90f32.to_radians()),
-            Vec3::new(1.0, 0.0, 0.0),
-        ),
-        (
-            Quat::from_rotation_x(90f32.to_radians()),
-            Vec3::new(0.0, 0.0, -1.0),
-        ),
-        (
-            Quat::from_rotation_x(-90f32.to_radians()),
-            Vec3::new(0.0, 0.0, 1.0),
-        ),
+        (Quat::from_rotation_x(180f32.to_radians()), Vec3::new(0.0, 1.0, 0.0)),
+        (Quat::from_rotation_z(-90f32.to_radians()), Vec3::new(-1.0, 0.0, 0.0)),
+        (Quat::from_rotation_z(90f32.to_radians()), Vec3::new(1.0, 0.0, 0.0)),
+        (Quat::from_rotation_x(90f32.to_radians()), Vec3::new(0.0, 0.0, -1.0)),
+        (Quat::from_rotation_x(-90f32.to_radians()), Vec3::new(0.0, 0.0, 1.0)),
     ];
     for (k, ((rotation, at), (albedo, emission))) in placements.into_iter().zip(walls).enumerate() {
         builder.object(
@@ -86,9 +60,7 @@ fn room(walls: [(f32, f32); 6]) -> SceneBuilder {
 fn closed_room_with_uniform_emission_reaches_le_over_one_minus_rho() {
     // Bounded runs: the ambient term stands in for the light not yet shot.
     for (rho, tolerance, shots) in [(0.5f32, 0.02f32, 4_000), (0.95, 0.05, 8_000)] {
-        let baked = bake_emitters(&room([(rho, 1.0); 6]), 96, |o| {
-            o.solve.bounce.max_shots = Some(shots)
-        });
+        let baked = bake_emitters(&room([(rho, 1.0); 6]), 96, |o| o.solve.bounce.max_shots = Some(shots));
         let expected = 1.0 / (1.0 - rho);
         let bounce = baked.solution.bounce.as_ref().expect("the bounce pass ran");
         let mut worst = 0.0f32;
@@ -118,22 +90,14 @@ fn closed_room_with_one_emitting_wall_keeps_the_mean() {
         let mut walls = [(rho, 0.0); 6];
         walls[1].1 = 3.0;
         let baked = bake_emitters(&room(walls), 96, |o| o.solve.bounce.max_shots = Some(8_000));
-        let mean = area_mean(&baked, &[0, 1, 2, 3, 4, 5], |i| {
-            baked.solution.radiosity(&baked.texels, i)[0]
-        });
+        let mean = area_mean(&baked, &[0, 1, 2, 3, 4, 5], |i| baked.solution.radiosity(&baked.texels, i)[0]);
         let expected = 3.0 / 6.0 / (1.0 - rho as f64);
         eprintln!("ρ = {rho}: mean radiosity {mean:.4}, expected {expected:.4}");
-        assert!(
-            (mean / expected - 1.0).abs() < tolerance,
-            "ρ = {rho}: mean {mean} vs {expected}"
-        );
+        assert!((mean / expected - 1.0).abs() < tolerance, "ρ = {rho}: mean {mean} vs {expected}");
         // Farther from the lamp is darker.
         let floor = area_mean(&baked, &[0], |i| baked.solution.lightmap[i][0]);
         let wall = area_mean(&baked, &[2], |i| baked.solution.lightmap[i][0]);
-        assert!(
-            floor < wall || rho > 0.9,
-            "the floor (facing the lamp) {floor} vs a wall {wall}"
-        );
+        assert!(floor < wall || rho > 0.9, "the floor (facing the lamp) {floor} vs a wall {wall}");
     }
 }
 
@@ -141,20 +105,8 @@ fn closed_room_with_one_emitting_wall_keeps_the_mean() {
 /// square of radiance 1 placed by `emitter`: the form factor F(receiver → emitter).
 fn form_factor(emitter: Placement) -> f64 {
     let mut builder = SceneBuilder::new();
-    builder.object(
-        "receiver",
-        &MeshData::plane(1.0, 1.0, 8),
-        [0.0, 0.0, 0.0, 1.0],
-        [0.0; 3],
-        Placement::default(),
-    );
-    builder.object(
-        "emitter",
-        &MeshData::plane(1.0, 1.0, 8),
-        [0.0, 0.0, 0.0, 1.0],
-        [1.0; 3],
-        emitter,
-    );
+    builder.object("receiver", &MeshData::plane(1.0, 1.0, 8), [0.0, 0.0, 0.0, 1.0], [0.0; 3], Placement::default());
+    builder.object("emitter", &MeshData::plane(1.0, 1.0, 8), [0.0, 0.0, 0.0, 1.0], [1.0; 3], emitter);
     let baked = bake_emitters(&builder, 128, |o| o.solve.bounce.patches = 2048);
     area_mean(&baked, &[0], |i| baked.solution.lightmap[i][0])
 }
@@ -162,9 +114,7 @@ fn form_factor(emitter: Placement) -> f64 {
 #[test]
 fn parallel_coaxial_squares_match_the_closed_form() {
     // Unit squares one unit apart: F = 0.19982 (Hottel; Howell's catalogue C-11).
-    let f = form_factor(
-        Placement::at(Vec3::new(0.0, 1.0, 0.0)).rotated(Quat::from_rotation_x(180f32.to_radians())),
-    );
+    let f = form_factor(Placement::at(Vec3::new(0.0, 1.0, 0.0)).rotated(Quat::from_rotation_x(180f32.to_radians())));
     eprintln!("parallel squares: F = {f:.5} (closed form 0.19982)");
     assert!((f / 0.19982 - 1.0).abs() < 0.03, "F = {f}");
 }
@@ -172,9 +122,7 @@ fn parallel_coaxial_squares_match_the_closed_form() {
 #[test]
 fn perpendicular_squares_sharing_an_edge_match_the_closed_form() {
     // Unit squares at a right angle along a common edge: F = 0.20004 (Howell C-14).
-    let f = form_factor(
-        Placement::at(Vec3::new(0.5, 0.5, 0.0)).rotated(Quat::from_rotation_z(90f32.to_radians())),
-    );
+    let f = form_factor(Placement::at(Vec3::new(0.5, 0.5, 0.0)).rotated(Quat::from_rotation_z(90f32.to_radians())));
     eprintln!("perpendicular squares: F = {f:.5} (closed form 0.20004)");
     assert!((f / 0.20004 - 1.0).abs() < 0.03, "F = {f}");
 }
@@ -194,8 +142,7 @@ fn floor_and_red_wall(floor_albedo: f32) -> SceneBuilder {
         &MeshData::plane(2.0, 4.0, 8),
         [0.9, 0.1, 0.1, 1.0],
         [0.0; 3],
-        Placement::at(Vec3::new(-2.0, 1.0, 0.0))
-            .rotated(Quat::from_rotation_z(-90f32.to_radians())),
+        Placement::at(Vec3::new(-2.0, 1.0, 0.0)).rotated(Quat::from_rotation_z(-90f32.to_radians())),
     );
     builder
 }
@@ -203,16 +150,8 @@ fn floor_and_red_wall(floor_albedo: f32) -> SceneBuilder {
 #[test]
 fn white_floor_is_redder_next_to_a_red_wall() {
     let gpu = common::gpu();
-    let lights = common::lights(
-        &EnvironmentMap::constant([1.0; 3]),
-        LightMode::Cube { face_size: 8 },
-    );
-    let baked = common::bake(
-        &gpu,
-        &floor_and_red_wall(0.8),
-        &lights,
-        &common::options(128),
-    );
+    let lights = common::lights(&EnvironmentMap::constant([1.0; 3]), LightMode::Cube { face_size: 8 });
+    let baked = common::bake(&gpu, &floor_and_red_wall(0.8), &lights, &common::options(128));
     let redness = |near: bool| {
         let (mut r, mut g) = (0.0, 0.0);
         for (t, v) in baked.texels.texels.iter().zip(&baked.solution.lightmap) {
@@ -232,50 +171,27 @@ fn white_floor_is_redder_next_to_a_red_wall() {
 #[test]
 fn black_surfaces_bounce_nothing_and_reflection_never_exceeds_albedo() {
     let gpu = common::gpu();
-    let lights = common::lights(
-        &EnvironmentMap::constant([1.0; 3]),
-        LightMode::Cube { face_size: 8 },
-    );
+    let lights = common::lights(&EnvironmentMap::constant([1.0; 3]), LightMode::Cube { face_size: 8 });
     // All black: bouncing would add light from nowhere.
     let mut black = SceneBuilder::new();
-    black.object(
-        "floor",
-        &MeshData::plane(4.0, 4.0, 4),
-        [0.0, 0.0, 0.0, 1.0],
-        [0.0; 3],
-        Placement::default(),
-    );
+    black.object("floor", &MeshData::plane(4.0, 4.0, 4), [0.0, 0.0, 0.0, 1.0], [0.0; 3], Placement::default());
     black.object(
         "wall",
         &MeshData::plane(2.0, 4.0, 4),
         [0.0, 0.0, 0.0, 1.0],
         [0.0; 3],
-        Placement::at(Vec3::new(-2.0, 1.0, 0.0))
-            .rotated(Quat::from_rotation_z(-90f32.to_radians())),
+        Placement::at(Vec3::new(-2.0, 1.0, 0.0)).rotated(Quat::from_rotation_z(-90f32.to_radians())),
     );
     let baked = common::bake(&gpu, &black, &lights, &common::options(96));
-    assert!(
-        baked.solution.bounce.is_none(),
-        "a black scene has nothing to bounce"
-    );
+    assert!(baked.solution.bounce.is_none(), "a black scene has nothing to bounce");
     assert!(baked.solution.skipped.iter().any(|s| s.pass == "bounce"));
 
     // With albedo, the light every surface receives by bouncing is at most ρ times what was received.
-    let baked = common::bake(
-        &gpu,
-        &floor_and_red_wall(0.8),
-        &lights,
-        &common::options(96),
-    );
+    let baked = common::bake(&gpu, &floor_and_red_wall(0.8), &lights, &common::options(96));
     let bounce = baked.solution.bounce.as_ref().unwrap();
     assert!(bounce.closure <= 1.0);
-    let received: f64 = baked
-        .texels
-        .texels
-        .iter()
-        .zip(&baked.solution.lightmap)
-        .map(|(t, v)| v[1] as f64 * t.area as f64)
-        .sum();
+    let received: f64 =
+        baked.texels.texels.iter().zip(&baked.solution.lightmap).map(|(t, v)| v[1] as f64 * t.area as f64).sum();
     let reflected: f64 = baked
         .texels
         .texels
@@ -283,10 +199,7 @@ fn black_surfaces_bounce_nothing_and_reflection_never_exceeds_albedo() {
         .zip(&baked.solution.lightmap)
         .map(|(t, v)| (t.albedo[1] * v[1]) as f64 * t.area as f64)
         .sum();
-    assert!(
-        reflected <= 0.9 * received + 1e-9,
-        "reflected {reflected} vs received {received}"
-    );
+    assert!(reflected <= 0.9 * received + 1e-9, "reflected {reflected} vs received {received}");
 }
 
 #[test]
@@ -298,24 +211,9 @@ fn gpu_bake_matches_the_cpu_reference_with_interreflection() {
     let mut builder = SceneBuilder::new();
     let walls = [
         ("floor", Quat::IDENTITY, Vec3::ZERO, [0.7, 0.7, 0.7]),
-        (
-            "back",
-            Quat::from_rotation_x(90f32.to_radians()),
-            Vec3::new(0.0, 1.0, -1.0),
-            [0.7, 0.7, 0.7],
-        ),
-        (
-            "left",
-            Quat::from_rotation_z(-90f32.to_radians()),
-            Vec3::new(-1.0, 1.0, 0.0),
-            [0.8, 0.2, 0.2],
-        ),
-        (
-            "right",
-            Quat::from_rotation_z(90f32.to_radians()),
-            Vec3::new(1.0, 1.0, 0.0),
-            [0.2, 0.8, 0.2],
-        ),
+        ("back", Quat::from_rotation_x(90f32.to_radians()), Vec3::new(0.0, 1.0, -1.0), [0.7, 0.7, 0.7]),
+        ("left", Quat::from_rotation_z(-90f32.to_radians()), Vec3::new(-1.0, 1.0, 0.0), [0.8, 0.2, 0.2]),
+        ("right", Quat::from_rotation_z(90f32.to_radians()), Vec3::new(1.0, 1.0, 0.0), [0.2, 0.8, 0.2]),
     ];
     for (name, rotation, at, albedo) in walls {
         let [r, g, b] = albedo;
@@ -327,35 +225,21 @@ fn gpu_bake_matches_the_cpu_reference_with_interreflection() {
             Placement::at(at).rotated(rotation),
         );
     }
-    let map = EnvironmentMap::from_fn(128, 64, |d| {
-        if d[1] > 0.0 {
-            [1.0, 1.0, 1.0]
-        } else {
-            [0.2, 0.2, 0.2]
-        }
-    });
+    let map = EnvironmentMap::from_fn(128, 64, |d| if d[1] > 0.0 { [1.0, 1.0, 1.0] } else { [0.2, 0.2, 0.2] });
     let lights = common::lights(&map, LightMode::Cube { face_size: 16 });
     let baked = common::bake(&gpu, &builder, &lights, &common::options(96));
     assert!(baked.solution.bounce.is_some());
 
-    let sample: Vec<usize> = (0..baked.texels.texels.len())
-        .step_by(7)
-        .filter(|&i| baked.texels.texels[i].area > 0.0)
-        .collect();
+    let sample: Vec<usize> =
+        (0..baked.texels.texels.len()).step_by(7).filter(|&i| baked.texels.texels[i].area > 0.0).collect();
     let points: Vec<bake::reference::ReferencePoint> = sample
         .iter()
         .map(|&i| {
             let t = &baked.texels.texels[i];
-            bake::reference::ReferencePoint {
-                position: t.position,
-                normal: t.normal,
-            }
+            bake::reference::ReferencePoint { position: t.position, normal: t.normal }
         })
         .collect();
-    let options = bake::reference::ReferenceOptions {
-        samples: 512,
-        ..Default::default()
-    };
+    let options = bake::reference::ReferenceOptions { samples: 512, ..Default::default() };
     let reference = bake::reference::Reference::new(&baked.scene, Some(&map), &options);
     let estimates = reference.estimate(&points);
     let (mut squared, mut mean) = (0.0f64, 0.0f64);
@@ -368,9 +252,6 @@ fn gpu_bake_matches_the_cpu_reference_with_interreflection() {
     }
     let n = (sample.len() * 3) as f64;
     let relative_rmse = (squared / n).sqrt() / (mean / n);
-    eprintln!(
-        "GPU vs CPU reference over {} texels: relative RMSE {relative_rmse:.4}",
-        sample.len()
-    );
+    eprintln!("GPU vs CPU reference over {} texels: relative RMSE {relative_rmse:.4}", sample.len());
     assert!(relative_rmse < 0.05, "relative RMSE {relative_rmse}");
 }

@@ -18,11 +18,7 @@ fn scene(builder: &SceneBuilder) -> Scene {
 }
 
 fn options(samples: u32) -> ReferenceOptions {
-    ReferenceOptions {
-        samples,
-        seed: 7,
-        ..Default::default()
-    }
+    ReferenceOptions { samples, seed: 7, ..Default::default() }
 }
 
 fn point(position: [f32; 3], normal: [f32; 3]) -> ReferencePoint {
@@ -39,23 +35,11 @@ fn check(name: &str, got: &Estimate, expected: [f64; 3], sigmas: f64, relative: 
         eprintln!(
             "{name} [{c}]: got {v:.6} ± {s:.2e}, expected {e:.6}, off by {:.2}σ, {:.3}%",
             if s > 0.0 { diff / s } else { 0.0 },
-            if e != 0.0 {
-                100.0 * diff / e.abs()
-            } else {
-                0.0
-            }
+            if e != 0.0 { 100.0 * diff / e.abs() } else { 0.0 }
         );
         assert!(v.is_finite() && s.is_finite(), "{name}: not finite");
-        assert!(
-            diff <= sigmas * s + slack,
-            "{name} [{c}]: {v} vs {e}: {diff} > {sigmas}σ = {}",
-            sigmas * s
-        );
-        assert!(
-            diff <= relative * e.abs() + slack,
-            "{name} [{c}]: {v} vs {e}: more than {}%",
-            100.0 * relative
-        );
+        assert!(diff <= sigmas * s + slack, "{name} [{c}]: {v} vs {e}: {diff} > {sigmas}σ = {}", sigmas * s);
+        assert!(diff <= relative * e.abs() + slack, "{name} [{c}]: {v} vs {e}: more than {}%", 100.0 * relative);
     }
 }
 
@@ -78,20 +62,11 @@ fn white_furnace_sphere_sees_the_environment() {
         );
         let scene = scene(&builder);
         let reference = Reference::new(&scene, Some(&map), &options(1024));
-        let points: Vec<ReferencePoint> = surface_points(&scene, 12, 3)
-            .iter()
-            .map(|p| p.point)
-            .collect();
+        let points: Vec<ReferencePoint> = surface_points(&scene, 12, 3).iter().map(|p| p.point).collect();
         for (p, e) in points.iter().zip(reference.estimate(&points)) {
             // Normals point outwards.
             assert!(Vec3::from(p.normal).dot(Vec3::from(p.position)) > 0.0);
-            check(
-                &format!("furnace albedo {albedo}"),
-                &e,
-                radiance.map(f64::from),
-                3.0,
-                0.01,
-            );
+            check(&format!("furnace albedo {albedo}"), &e, radiance.map(f64::from), 3.0, 0.01);
         }
     }
 }
@@ -114,24 +89,12 @@ fn convex_sphere_under_horizon_sees_the_tilted_sky() {
         );
         let scene = scene(&builder);
         let reference = Reference::new(&scene, Some(&map), &options(16384));
-        let points: Vec<ReferencePoint> = surface_points(&scene, 8, 4)
-            .iter()
-            .map(|p| p.point)
-            .collect();
+        let points: Vec<ReferencePoint> = surface_points(&scene, 8, 4).iter().map(|p| p.point).collect();
         for (p, e) in points.iter().zip(reference.estimate(&points)) {
             let expected = radiance as f64 * (1.0 + p.normal[1] as f64) / 2.0;
-            let name = format!(
-                "sphere under horizon, albedo {albedo}, n_y {:.2}",
-                p.normal[1]
-            );
+            let name = format!("sphere under horizon, albedo {albedo}, n_y {:.2}", p.normal[1]);
             // 2 % or 1e-3 of the sky for the points facing almost straight down.
-            check(
-                &name,
-                &e,
-                [expected; 3],
-                4.0,
-                0.02_f64.max(1.5e-3 / expected),
-            );
+            check(&name, &e, [expected; 3], 4.0, 0.02_f64.max(1.5e-3 / expected));
         }
     }
 }
@@ -142,18 +105,8 @@ fn horizon_map_lights_by_orientation() {
     let map = horizon_map([radiance; 3]);
     let cases = [
         ("up", Quat::IDENTITY, [0.0, 1.0, 0.0], 1.0),
-        (
-            "vertical",
-            Quat::from_rotation_x(FRAC_PI_2 as f32),
-            [0.0, 0.0, 1.0],
-            0.5,
-        ),
-        (
-            "down",
-            Quat::from_rotation_x(PI as f32),
-            [0.0, -1.0, 0.0],
-            0.0,
-        ),
+        ("vertical", Quat::from_rotation_x(FRAC_PI_2 as f32), [0.0, 0.0, 1.0], 0.5),
+        ("down", Quat::from_rotation_x(PI as f32), [0.0, -1.0, 0.0], 0.0),
     ];
     for (name, rotation, normal, fraction) in cases {
         for with_normals in [true, false] {
@@ -163,36 +116,17 @@ fn horizon_map_lights_by_orientation() {
                 mesh.normals.clear();
             }
             let mut builder = SceneBuilder::new();
-            builder.object(
-                "plane",
-                &mesh,
-                [0.5, 0.5, 0.5, 1.0],
-                [0.0; 3],
-                Placement::default().rotated(rotation),
-            );
+            builder.object("plane", &mesh, [0.5, 0.5, 0.5, 1.0], [0.0; 3], Placement::default().rotated(rotation));
             let scene = scene(&builder);
             let reference = Reference::new(&scene, Some(&map), &options(65536));
-            let points: Vec<ReferencePoint> = surface_points(&scene, 2, 1)
-                .iter()
-                .map(|p| p.point)
-                .collect();
+            let points: Vec<ReferencePoint> = surface_points(&scene, 2, 1).iter().map(|p| p.point).collect();
             for p in &points {
-                assert!(
-                    (Vec3::from(p.normal) - Vec3::from(normal)).length() < 1e-5,
-                    "{name}: normal {:?}",
-                    p.normal
-                );
+                assert!((Vec3::from(p.normal) - Vec3::from(normal)).length() < 1e-5, "{name}: normal {:?}", p.normal);
             }
             for e in reference.estimate(&points) {
                 let expected = (radiance * fraction) as f64;
                 // A step in the integrand: about 2.4 % standard error per √1024 samples.
-                check(
-                    &format!("horizon {name}, normals {with_normals}"),
-                    &e,
-                    [expected; 3],
-                    4.0,
-                    0.015,
-                );
+                check(&format!("horizon {name}, normals {with_normals}"), &e, [expected; 3], 4.0, 0.015);
             }
         }
     }
@@ -219,17 +153,8 @@ fn black_sphere_above_hides_its_solid_angle() {
     // at most the gap between the sphere and the nearest face planes.
     let inner = r * (PI / segments as f64).cos() * (PI / (2 * rings) as f64).cos();
     let facets = sky as f64 * (r * r - inner * inner) / (d * d);
-    eprintln!(
-        "sphere: faceting allows {facets:.2e}; {} triangles",
-        reference.triangle_count()
-    );
-    check(
-        "sphere above",
-        &e,
-        [expected; 3],
-        4.0 + facets / e.std_error[0],
-        0.01,
-    );
+    eprintln!("sphere: faceting allows {facets:.2e}; {} triangles", reference.triangle_count());
+    check("sphere above", &e, [expected; 3], 4.0 + facets / e.std_error[0], 0.01);
 }
 
 fn closed_room(albedo: f32, emission: f32) -> Scene {
@@ -250,21 +175,12 @@ fn closed_room_converges_to_the_geometric_series() {
     for (albedo, samples, relative) in [(0.5f32, 4096, 0.02), (0.9, 16384, 0.05)] {
         let scene = closed_room(albedo, le);
         let reference = Reference::new(&scene, None, &options(samples));
-        let mut points: Vec<ReferencePoint> = surface_points(&scene, 3, 2)
-            .iter()
-            .map(|p| p.point)
-            .collect();
+        let mut points: Vec<ReferencePoint> = surface_points(&scene, 3, 2).iter().map(|p| p.point).collect();
         // And the centre of the room, looking sideways.
         points.push(point([0.0; 3], [1.0, 0.0, 0.0]));
         let expected = le as f64 / (1.0 - albedo as f64);
         for e in reference.estimate(&points) {
-            check(
-                &format!("room albedo {albedo}"),
-                &e,
-                [expected; 3],
-                4.0,
-                relative,
-            );
+            check(&format!("room albedo {albedo}"), &e, [expected; 3], 4.0, relative);
         }
     }
 }
@@ -292,13 +208,7 @@ fn view_factor_numeric(a: f64, b: f64, c: f64, n: usize) -> f64 {
 
 fn facing_squares(emitter_rotation: Quat, emission: f32) -> Scene {
     let mut builder = SceneBuilder::new();
-    builder.object(
-        "receiver",
-        &MeshData::plane(1.0, 1.0, 1),
-        [0.0, 0.0, 0.0, 1.0],
-        [0.0; 3],
-        Placement::default(),
-    );
+    builder.object("receiver", &MeshData::plane(1.0, 1.0, 1), [0.0, 0.0, 0.0, 1.0], [0.0; 3], Placement::default());
     builder.object(
         "emitter",
         &MeshData::plane(1.0, 1.0, 1),
@@ -316,10 +226,7 @@ fn form_factor_of_facing_squares() {
     eprintln!("view factor: closed form {closed:.8}, numeric {numeric:.8}");
     assert!((closed - numeric).abs() < 1e-6);
     // An asymmetric rectangle checks the formula's a/b pairing too.
-    let (closed2, numeric2) = (
-        view_factor(0.3, 1.1, 0.7),
-        view_factor_numeric(0.3, 1.1, 0.7, 1000),
-    );
+    let (closed2, numeric2) = (view_factor(0.3, 1.1, 0.7), view_factor_numeric(0.3, 1.1, 0.7, 1000));
     eprintln!("view factor 0.6×2.2 at 0.7: closed form {closed2:.8}, numeric {numeric2:.8}");
     assert!((closed2 - numeric2).abs() < 1e-6);
 
@@ -343,37 +250,21 @@ fn back_of_single_sided_emitter_is_black() {
         m.double_sided = true;
     }
     let e = Reference::new(&scene, None, &options(65536)).estimate(&p)[0];
-    check(
-        "double-sided emitter from behind",
-        &e,
-        [le as f64 * view_factor(0.5, 0.5, 1.0); 3],
-        4.0,
-        0.02,
-    );
+    check("double-sided emitter from behind", &e, [le as f64 * view_factor(0.5, 0.5, 1.0); 3], 4.0, 0.02);
 }
 
 /// Direction of the centre of pixel (row, col) of a W×H map.
 fn pixel_direction(row: usize, col: usize, w: usize, h: usize) -> Vec3 {
     let theta = (row as f64 + 0.5) / h as f64 * PI;
     let phi = ((col as f64 + 0.5) / w as f64 - 0.5) * TAU;
-    Vec3::new(
-        (theta.sin() * phi.cos()) as f32,
-        theta.cos() as f32,
-        (theta.sin() * phi.sin()) as f32,
-    )
+    Vec3::new((theta.sin() * phi.cos()) as f32, theta.cos() as f32, (theta.sin() * phi.sin()) as f32)
 }
 
 /// ∫ over pixel (row, col) of max(n·ω, 0) dω, by a fine grid in (φ, cos θ).
 fn pixel_cosine_integral(row: usize, col: usize, w: usize, h: usize, n: Vec3) -> f64 {
     let k = 64;
-    let (c0, c1) = (
-        (row as f64 * PI / h as f64).cos(),
-        ((row + 1) as f64 * PI / h as f64).cos(),
-    );
-    let (p0, p1) = (
-        (col as f64 / w as f64 - 0.5) * TAU,
-        ((col + 1) as f64 / w as f64 - 0.5) * TAU,
-    );
+    let (c0, c1) = ((row as f64 * PI / h as f64).cos(), ((row + 1) as f64 * PI / h as f64).cos());
+    let (p0, p1) = ((col as f64 / w as f64 - 0.5) * TAU, ((col + 1) as f64 / w as f64 - 0.5) * TAU);
     let mut sum = 0.0;
     for i in 0..k {
         for j in 0..k {
@@ -391,30 +282,21 @@ fn pixel_cosine_integral(row: usize, col: usize, w: usize, h: usize, n: Vec3) ->
 fn sun_is_importance_sampled() {
     let (w, h) = (512usize, 256usize);
     let (sky, sun) = (1.0f32, 1.0e5f32);
-    let mut map = EnvironmentMap::from_fn(w as u32, h as u32, |d| {
-        if d[1] > 0.0 { [sky; 3] } else { [0.0; 3] }
-    });
+    let mut map = EnvironmentMap::from_fn(w as u32, h as u32, |d| if d[1] > 0.0 { [sky; 3] } else { [0.0; 3] });
     let sun_pixels = [(80, 100), (80, 101), (81, 100), (81, 101)];
     for &(r, c) in &sun_pixels {
         map.texels[r * w + c] = [sun; 3];
     }
     let sun_dir = (pixel_direction(80, 100, w, h) + pixel_direction(81, 101, w, h)).normalize();
-    eprintln!(
-        "sun direction {sun_dir:?}, {:.1}° above the horizon",
-        sun_dir.y.asin().to_degrees()
-    );
+    eprintln!("sun direction {sun_dir:?}, {:.1}° above the horizon", sun_dir.y.asin().to_degrees());
 
     // (rotation, intensity): the map turned about +Y, so the sun moves with it.
     for (rotation, intensity) in [(0.0f32, 1.0f32), (90.0, 2.0), (-33.0, 0.5)] {
         let turn = Quat::from_rotation_y(rotation.to_radians());
         let normal = turn * sun_dir;
-        let sun_integral: f64 = sun_pixels
-            .iter()
-            .map(|&(r, c)| pixel_cosine_integral(r, c, w, h, sun_dir))
-            .sum();
+        let sun_integral: f64 = sun_pixels.iter().map(|&(r, c)| pixel_cosine_integral(r, c, w, h, sun_dir)).sum();
         let expected = intensity as f64
-            * (sky as f64 * ((1.0 + sun_dir.y as f64) / 2.0 - sun_integral / PI)
-                + sun as f64 * sun_integral / PI);
+            * (sky as f64 * ((1.0 + sun_dir.y as f64) / 2.0 - sun_integral / PI) + sun as f64 * sun_integral / PI);
         let mut builder = SceneBuilder::new();
         builder.object(
             "panel",
@@ -427,11 +309,7 @@ fn sun_is_importance_sampled() {
         let reference = Reference::new(
             &scene,
             Some(&map),
-            &ReferenceOptions {
-                env_rotation_degrees: rotation,
-                env_intensity: intensity,
-                ..options(1024)
-            },
+            &ReferenceOptions { env_rotation_degrees: rotation, env_intensity: intensity, ..options(1024) },
         );
         let e = reference.estimate(&[point([0.0; 3], normal.to_array())])[0];
         eprintln!(
@@ -474,31 +352,15 @@ fn sphere_on_ground(scale: f32) -> SceneBuilder {
 fn deterministic_for_any_thread_count() {
     let scene = scene(&sphere_on_ground(1.0));
     let map = horizon_map([1.0, 0.9, 0.8]);
-    let points: Vec<ReferencePoint> = surface_points(&scene, 16, 5)
-        .iter()
-        .map(|p| p.point)
-        .collect();
+    let points: Vec<ReferencePoint> = surface_points(&scene, 16, 5).iter().map(|p| p.point).collect();
     let run = |threads: usize, seed: u64| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        let reference = Reference::new(
-            &scene,
-            Some(&map),
-            &ReferenceOptions {
-                seed,
-                ..options(300)
-            },
-        );
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let reference = Reference::new(&scene, Some(&map), &ReferenceOptions { seed, ..options(300) });
         pool.install(|| reference.estimate(&points))
     };
     let one = run(1, 11);
     let two = run(2, 11);
-    eprintln!(
-        "first point: {:?} (1 thread) {:?} (2 threads)",
-        one[0].lightmap, two[0].lightmap
-    );
+    eprintln!("first point: {:?} (1 thread) {:?} (2 threads)", one[0].lightmap, two[0].lightmap);
     assert_eq!(one, two);
     let other = run(2, 12);
     assert_ne!(one, other, "a different seed should give different noise");
@@ -509,17 +371,11 @@ fn same_answer_at_any_scale() {
     let map = horizon_map([1.0, 0.9, 0.8]);
     let sample = |scale: f32| {
         let scene = scene(&sphere_on_ground(scale));
-        let mut points: Vec<ReferencePoint> = surface_points(&scene, 10, 9)
-            .iter()
-            .map(|p| p.point)
-            .collect();
+        let mut points: Vec<ReferencePoint> = surface_points(&scene, 10, 9).iter().map(|p| p.point).collect();
         // On the ground right beside the sphere's contact point, and on the
         // block's side just above the ground: contact shadows and corners.
         points.push(point([0.02 * scale, 0.0, 0.0], [0.0, 1.0, 0.0]));
-        points.push(point(
-            [1.5 * scale, 0.01 * scale, 0.5 * scale],
-            [-1.0, 0.0, 0.0],
-        ));
+        points.push(point([1.5 * scale, 0.01 * scale, 0.5 * scale], [-1.0, 0.0, 0.0]));
         let reference = Reference::new(&scene, Some(&map), &options(512));
         let estimates = reference.estimate(&points);
         (points, estimates)
@@ -530,10 +386,7 @@ fn same_answer_at_any_scale() {
         let (points, scaled) = sample(scale);
         for (i, (a, b)) in base.iter().zip(&scaled).enumerate() {
             let p = Vec3::from(points[i].position) / scale;
-            assert!(
-                (p - Vec3::from(base_points[i].position)).length() < 1e-4,
-                "point {i} moved"
-            );
+            assert!((p - Vec3::from(base_points[i].position)).length() < 1e-4, "point {i} moved");
             for c in 0..3 {
                 let sigma = (a.std_error[c].powi(2) + b.std_error[c].powi(2)).sqrt();
                 let diff = (a.lightmap[c] - b.lightmap[c]).abs();
@@ -560,9 +413,6 @@ fn same_answer_at_any_scale() {
 fn invalid_points_give_nan() {
     let scene = closed_room(0.5, 1.0);
     let reference = Reference::new(&scene, None, &options(16));
-    let e = reference.estimate(&[
-        point([0.0; 3], [0.0; 3]),
-        point([f32::NAN, 0.0, 0.0], [0.0, 1.0, 0.0]),
-    ]);
+    let e = reference.estimate(&[point([0.0; 3], [0.0; 3]), point([f32::NAN, 0.0, 0.0], [0.0, 1.0, 0.0])]);
     assert!(e.iter().all(|e| e.lightmap.iter().all(|v| v.is_nan())));
 }

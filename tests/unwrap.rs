@@ -7,16 +7,11 @@
 #[path = "../examples/unwrap_compare/meshes.rs"]
 mod meshes;
 
-use bake::unwrap::{
-    Atlas, Backend, MeshInput, UnwrapError, UnwrapOptions, inspect, run, xatlas_ffi,
-};
+use bake::unwrap::{Atlas, Backend, MeshInput, UnwrapError, UnwrapOptions, inspect, run, xatlas_ffi};
 use meshes::Mesh;
 
 fn options(backend: Backend) -> UnwrapOptions {
-    UnwrapOptions {
-        backend,
-        ..UnwrapOptions::default()
-    }
+    UnwrapOptions { backend, ..UnwrapOptions::default() }
 }
 
 fn inputs(meshes: &[Mesh]) -> Vec<MeshInput<'_>> {
@@ -27,11 +22,7 @@ fn world_area(p: [[f32; 3]; 3]) -> f64 {
     let [a, b, c] = p.map(|v| v.map(f64::from));
     let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-    let n = [
-        u[1] * w[2] - u[2] * w[1],
-        u[2] * w[0] - u[0] * w[2],
-        u[0] * w[1] - u[1] * w[0],
-    ];
+    let n = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
     0.5 * (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt()
 }
 
@@ -54,11 +45,7 @@ impl Tri {
 /// Structural checks shared by every test, returning the charted triangles in texels:
 /// index counts, uv range, xref range and positions, chart ids.
 fn check_structure(meshes: &[Mesh], atlas: &Atlas) -> Vec<Tri> {
-    assert_eq!(
-        atlas.meshes.len(),
-        meshes.len(),
-        "one output mesh per input"
-    );
+    assert_eq!(atlas.meshes.len(), meshes.len(), "one output mesh per input");
     assert!(atlas.width > 0 && atlas.height > 0, "non-empty page");
     let (w, h) = (atlas.width as f64, atlas.height as f64);
     let mut tris = Vec::new();
@@ -67,16 +54,8 @@ fn check_structure(meshes: &[Mesh], atlas: &Atlas) -> Vec<Tri> {
         assert_eq!(out.indices.len(), m.indices.len(), "mesh {mi}: index count");
         let mut charts = std::collections::BTreeSet::new();
         for v in &out.vertices {
-            assert!(
-                v.uv.iter().all(|c| (0.0..=1.0).contains(c)),
-                "mesh {mi}: uv {:?} outside [0,1]",
-                v.uv
-            );
-            assert!(
-                (v.xref as usize) < m.positions.len(),
-                "mesh {mi}: xref {} out of range",
-                v.xref
-            );
+            assert!(v.uv.iter().all(|c| (0.0..=1.0).contains(c)), "mesh {mi}: uv {:?} outside [0,1]", v.uv);
+            assert!((v.xref as usize) < m.positions.len(), "mesh {mi}: xref {} out of range", v.xref);
             assert!(
                 v.chart == u32::MAX || v.chart < atlas.chart_count,
                 "mesh {mi}: chart {} >= chart_count {}",
@@ -89,42 +68,26 @@ fn check_structure(meshes: &[Mesh], atlas: &Atlas) -> Vec<Tri> {
         }
         for (f, t) in out.indices.chunks_exact(3).enumerate() {
             let v = [t[0], t[1], t[2]].map(|i| {
-                assert!(
-                    (i as usize) < out.vertices.len(),
-                    "mesh {mi}: index {i} out of range"
-                );
+                assert!((i as usize) < out.vertices.len(), "mesh {mi}: index {i} out of range");
                 out.vertices[i as usize]
             });
             for (k, x) in v.iter().enumerate() {
                 // xref maps back to the input vertex (or one at the identical position).
                 let input = m.positions[m.indices[3 * f + k] as usize];
-                assert_eq!(
-                    m.positions[x.xref as usize], input,
-                    "mesh {mi} face {f} corner {k}: xref position differs"
-                );
+                assert_eq!(m.positions[x.xref as usize], input, "mesh {mi} face {f} corner {k}: xref position differs");
             }
             let world = world_area(v.map(|x| m.positions[x.xref as usize]));
             if v.iter().any(|x| x.chart == u32::MAX) {
                 // Uncharted: all corners uncharted and the triangle collapsed (covers nothing).
-                assert!(
-                    v.iter().all(|x| x.chart == u32::MAX),
-                    "mixed charted/uncharted face"
-                );
-                assert!(
-                    v[0].uv == v[1].uv && v[1].uv == v[2].uv,
-                    "uncharted face not collapsed"
-                );
+                assert!(v.iter().all(|x| x.chart == u32::MAX), "mixed charted/uncharted face");
+                assert!(v[0].uv == v[1].uv && v[1].uv == v[2].uv, "uncharted face not collapsed");
                 continue;
             }
             assert!(
                 v[0].chart == v[1].chart && v[1].chart == v[2].chart,
                 "mesh {mi} face {f}: corners in different charts"
             );
-            tris.push(Tri {
-                chart: v[0].chart,
-                p: v.map(|x| [x.uv[0] as f64 * w, x.uv[1] as f64 * h]),
-                world,
-            });
+            tris.push(Tri { chart: v[0].chart, p: v.map(|x| [x.uv[0] as f64 * w, x.uv[1] as f64 * h]), world });
         }
         charts_per_mesh.push(charts);
     }
@@ -135,11 +98,7 @@ fn check_structure(meshes: &[Mesh], atlas: &Atlas) -> Vec<Tri> {
             assert!(all.insert(id), "chart {id} appears in two meshes");
         }
     }
-    assert_eq!(
-        all.len() as u32,
-        atlas.chart_count,
-        "chart ids not 0..chart_count"
-    );
+    assert_eq!(all.len() as u32, atlas.chart_count, "chart ids not 0..chart_count");
     tris
 }
 
@@ -151,13 +110,9 @@ fn covered_centres(t: &Tri, w: u32, h: u32, eps: f64, mut f: impl FnMut(u32, u32
     }
     let xs = t.p.map(|q| q[0]);
     let ys = t.p.map(|q| q[1]);
-    let x0 = (xs.iter().cloned().fold(f64::INFINITY, f64::min) - 1.0)
-        .floor()
-        .max(0.0) as u32;
+    let x0 = (xs.iter().cloned().fold(f64::INFINITY, f64::min) - 1.0).floor().max(0.0) as u32;
     let x1 = (xs.iter().cloned().fold(f64::NEG_INFINITY, f64::max) + 1.0).min(w as f64) as u32;
-    let y0 = (ys.iter().cloned().fold(f64::INFINITY, f64::min) - 1.0)
-        .floor()
-        .max(0.0) as u32;
+    let y0 = (ys.iter().cloned().fold(f64::INFINITY, f64::min) - 1.0).floor().max(0.0) as u32;
     let y1 = (ys.iter().cloned().fold(f64::NEG_INFINITY, f64::max) + 1.0).min(h as f64) as u32;
     let s = a.signum();
     for y in y0..y1 {
@@ -195,9 +150,7 @@ fn overlaps_texel(t: &Tri, x: u32, y: u32, eps: f64) -> bool {
         let proj = |pts: &[[f64; 2]]| {
             pts.iter()
                 .map(|p| p[0] * ax[0] + p[1] * ax[1])
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-                    (lo.min(v), hi.max(v))
-                })
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)))
         };
         let (a0, a1) = proj(&t.p);
         let (b0, b1) = proj(&sq);
@@ -227,10 +180,8 @@ fn check_overlap_and_flips(tris: &[Tri], atlas: &Atlas) {
     for t in tris {
         *total.entry(t.chart).or_insert(0.0) += t.signed_area();
     }
-    let flipped = tris
-        .iter()
-        .filter(|t| t.signed_area().abs() > 1e-9 && t.signed_area() * total[&t.chart] < 0.0)
-        .count();
+    let flipped =
+        tris.iter().filter(|t| t.signed_area().abs() > 1e-9 && t.signed_area() * total[&t.chart] < 0.0).count();
     assert_eq!(flipped, 0, "triangles flipped within their chart");
 }
 
@@ -243,28 +194,10 @@ fn check_padding(tris: &[Tri], atlas: &Atlas, padding: u32) {
         if t.signed_area().abs() < 1e-12 {
             continue;
         }
-        let x0 =
-            t.p.iter()
-                .map(|q| q[0])
-                .fold(f64::INFINITY, f64::min)
-                .floor()
-                .max(0.0) as i64;
-        let x1 =
-            t.p.iter()
-                .map(|q| q[0])
-                .fold(f64::NEG_INFINITY, f64::max)
-                .ceil() as i64;
-        let y0 =
-            t.p.iter()
-                .map(|q| q[1])
-                .fold(f64::INFINITY, f64::min)
-                .floor()
-                .max(0.0) as i64;
-        let y1 =
-            t.p.iter()
-                .map(|q| q[1])
-                .fold(f64::NEG_INFINITY, f64::max)
-                .ceil() as i64;
+        let x0 = t.p.iter().map(|q| q[0]).fold(f64::INFINITY, f64::min).floor().max(0.0) as i64;
+        let x1 = t.p.iter().map(|q| q[0]).fold(f64::NEG_INFINITY, f64::max).ceil() as i64;
+        let y0 = t.p.iter().map(|q| q[1]).fold(f64::INFINITY, f64::min).floor().max(0.0) as i64;
+        let y1 = t.p.iter().map(|q| q[1]).fold(f64::NEG_INFINITY, f64::max).ceil() as i64;
         for y in y0..y1.min(h) {
             for x in x0..x1.min(w) {
                 if overlaps_texel(t, x as u32, y as u32, 1e-4) {
@@ -308,12 +241,7 @@ fn check_padding(tris: &[Tri], atlas: &Atlas, padding: u32) {
 fn check_all(meshes: &[Mesh], options: &UnwrapOptions) -> Atlas {
     let atlas = run(&inputs(meshes), options).expect("unwrap");
     // The backend's own output passed run()'s validation (no fallback to the other backend).
-    assert!(
-        !atlas.notices.iter().any(|n| n.contains("invalid")),
-        "{:?}: {:?}",
-        options.backend,
-        atlas.notices
-    );
+    assert!(!atlas.notices.iter().any(|n| n.contains("invalid")), "{:?}: {:?}", options.backend, atlas.notices);
     assert!(atlas.width <= options.max_atlas_size && atlas.height <= options.max_atlas_size);
     let tris = check_structure(meshes, &atlas);
     check_overlap_and_flips(&tris, &atlas);
@@ -330,13 +258,7 @@ fn basic_scenes() -> Vec<(&'static str, Vec<Mesh>)> {
         ("cube", vec![meshes::cube(1.0)]),
         ("ground", vec![meshes::ground(10.0)]),
         ("torus", vec![meshes::torus(48, 24, 1.0, 0.3)]),
-        (
-            "sphere on ground",
-            vec![
-                meshes::uv_sphere(48, 24, 1.0).translated([0.0, 1.0, 0.0]),
-                meshes::ground(10.0),
-            ],
-        ),
+        ("sphere on ground", vec![meshes::uv_sphere(48, 24, 1.0).translated([0.0, 1.0, 0.0]), meshes::ground(10.0)]),
     ]
 }
 
@@ -344,15 +266,8 @@ fn valid_on_basic_scenes(backend: Backend) {
     for (name, scene) in basic_scenes() {
         eprintln!("{backend}: {name}");
         let atlas = check_all(&scene, &options(backend));
-        assert!(
-            atlas.utilization > 0.3,
-            "{name}: utilization {}",
-            atlas.utilization
-        );
-        assert!(
-            atlas.width.max(atlas.height) > 900,
-            "{name}: automatic density fills the page"
-        );
+        assert!(atlas.utilization > 0.3, "{name}: utilization {}", atlas.utilization);
+        assert!(atlas.width.max(atlas.height) > 900, "{name}: automatic density fills the page");
     }
 }
 
@@ -384,17 +299,9 @@ fn uvunwrap_valid_on_statue() {
 
 fn padding_is_real(backend: Backend) {
     // Small pages and several paddings, brute-forced.
-    let scene = vec![
-        meshes::cube(1.0),
-        meshes::torus(24, 12, 1.0, 0.3).translated([3.0, 0.0, 0.0]),
-    ];
+    let scene = vec![meshes::cube(1.0), meshes::torus(24, 12, 1.0, 0.3).translated([3.0, 0.0, 0.0])];
     for padding in [0, 1, 3] {
-        let o = UnwrapOptions {
-            backend,
-            texels_per_unit: None,
-            max_atlas_size: 256,
-            padding,
-        };
+        let o = UnwrapOptions { backend, texels_per_unit: None, max_atlas_size: 256, padding };
         check_all(&scene, &o);
     }
 }
@@ -418,10 +325,7 @@ fn density_matches(backend: Backend, per_chart: f64, overall: f64) {
         ("ground", vec![meshes::ground(10.0)], 20.0),
         ("torus", vec![meshes::torus(48, 24, 1.0, 0.3)], 60.0),
     ] {
-        let o = UnwrapOptions {
-            texels_per_unit: Some(tpu),
-            ..options(backend)
-        };
+        let o = UnwrapOptions { texels_per_unit: Some(tpu), ..options(backend) };
         let atlas = check_all(&scene, &o);
         assert_eq!(atlas.texels_per_unit, tpu, "{name}: density kept");
         assert!(atlas.notices.is_empty(), "{name}: {:?}", atlas.notices);
@@ -441,10 +345,7 @@ fn density_matches(backend: Backend, per_chart: f64, overall: f64) {
             );
         }
         let r = uv.iter().sum::<f64>() / (world.iter().sum::<f64>() * tpu2);
-        assert!(
-            r.max(1.0 / r) <= 1.0 + overall,
-            "{backend} {name}: {r:.3}× the requested texel area overall"
-        );
+        assert!(r.max(1.0 / r) <= 1.0 + overall, "{backend} {name}: {r:.3}× the requested texel area overall");
     }
 }
 
@@ -463,16 +364,8 @@ fn xatlas_density_matches() {
 }
 
 fn density_lowered_to_fit(backend: Backend) {
-    let scene = vec![
-        meshes::ground(10.0),
-        meshes::cube(1.0).translated([0.0, 0.5, 0.0]),
-    ];
-    let o = UnwrapOptions {
-        backend,
-        texels_per_unit: Some(64.0),
-        max_atlas_size: 256,
-        padding: 2,
-    };
+    let scene = vec![meshes::ground(10.0), meshes::cube(1.0).translated([0.0, 0.5, 0.0])];
+    let o = UnwrapOptions { backend, texels_per_unit: Some(64.0), max_atlas_size: 256, padding: 2 };
     let atlas = check_all(&scene, &o);
     assert!(atlas.width <= 256 && atlas.height <= 256);
     // 10 m at 64 texels/m needs 640 texels: the density must come down to about 25.
@@ -482,18 +375,12 @@ fn density_lowered_to_fit(backend: Backend) {
         atlas.texels_per_unit
     );
     assert!(
-        atlas
-            .notices
-            .iter()
-            .any(|n| n.contains("lowered") && n.contains("64") && n.contains("256")),
+        atlas.notices.iter().any(|n| n.contains("lowered") && n.contains("64") && n.contains("256")),
         "{backend}: notices {:?}",
         atlas.notices
     );
     // A density that fits is kept, without notice.
-    let o = UnwrapOptions {
-        texels_per_unit: Some(10.0),
-        ..o
-    };
+    let o = UnwrapOptions { texels_per_unit: Some(10.0), ..o };
     let atlas = check_all(&scene, &o);
     assert_eq!(atlas.texels_per_unit, 10.0);
     assert!(atlas.notices.is_empty(), "{:?}", atlas.notices);
@@ -525,9 +412,7 @@ fn robust_on_troublesome_input(backend: Backend) {
         let s = 0.01 + (i % 17) as f32 * 0.05;
         let (x, z) = ((i % 20) as f32 * 2.0, (i / 20) as f32 * 2.0);
         let b = scatter.positions.len() as u32;
-        scatter
-            .positions
-            .extend([[x, 0.0, z], [x + s, 0.0, z], [x, s * 0.5, z + s]]);
+        scatter.positions.extend([[x, 0.0, z], [x + s, 0.0, z], [x, s * 0.5, z + s]]);
         scatter.indices.extend([b, b + 1, b + 2]);
     }
     let scene = vec![t.clone(), Mesh::default(), scatter];
@@ -548,17 +433,11 @@ fn uvunwrap_robust_on_troublesome_input() {
 
 #[test]
 fn deterministic() {
-    let scene = vec![
-        meshes::uv_sphere(24, 12, 1.0).translated([0.0, 1.0, 0.0]),
-        meshes::ground(10.0),
-        meshes::troublesome(),
-    ];
+    let scene =
+        vec![meshes::uv_sphere(24, 12, 1.0).translated([0.0, 1.0, 0.0]), meshes::ground(10.0), meshes::troublesome()];
     for backend in Backend::ALL {
         for tpu in [None, Some(30.0)] {
-            let o = UnwrapOptions {
-                texels_per_unit: tpu,
-                ..options(backend)
-            };
+            let o = UnwrapOptions { texels_per_unit: tpu, ..options(backend) };
             let a = run(&inputs(&scene), &o).unwrap();
             let b = run(&inputs(&scene), &o).unwrap();
             assert_eq!(a, b, "{backend} with {tpu:?} differs between runs");
@@ -568,10 +447,8 @@ fn deterministic() {
 
 #[test]
 fn empty_and_degenerate_input() {
-    let flat = Mesh {
-        positions: vec![[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [2.0, 2.0, 2.0]],
-        indices: vec![0, 1, 2, 0, 0, 1],
-    };
+    let flat =
+        Mesh { positions: vec![[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [2.0, 2.0, 2.0]], indices: vec![0, 1, 2, 0, 0, 1] };
     for backend in Backend::ALL {
         let o = options(backend);
         let a = run(&[], &o).unwrap();
@@ -583,12 +460,7 @@ fn empty_and_degenerate_input() {
         let a = run(&[flat.input()], &o).unwrap();
         assert!(a.is_empty(), "{backend}");
         assert_eq!(a.meshes[0].indices.len(), 6);
-        assert!(
-            a.meshes[0]
-                .vertices
-                .iter()
-                .all(|v| v.uv == [0.0, 0.0] && v.chart == u32::MAX)
-        );
+        assert!(a.meshes[0].vertices.iter().all(|v| v.uv == [0.0, 0.0] && v.chart == u32::MAX));
     }
 }
 
@@ -599,42 +471,17 @@ fn invalid_input_is_an_error() {
     for backend in Backend::ALL {
         let o = options(backend);
         let err = |m: MeshInput, o: &UnwrapOptions| {
-            run(&[m], o)
-                .unwrap_err()
-                .downcast::<UnwrapError>()
-                .expect("an UnwrapError")
+            run(&[m], o).unwrap_err().downcast::<UnwrapError>().expect("an UnwrapError")
         };
-        assert!(matches!(
-            err(MeshInput::new(&p, &[0, 1]), &o),
-            UnwrapError::InvalidIndexCount { .. }
-        ));
-        assert!(matches!(
-            err(MeshInput::new(&p, &[0, 1, 3]), &o),
-            UnwrapError::IndexOutOfRange { index: 3, .. }
-        ));
-        assert!(matches!(
-            err(MeshInput::new(&nan, &[0, 1, 2]), &o),
-            UnwrapError::NonFinitePosition { vertex: 1, .. }
-        ));
+        assert!(matches!(err(MeshInput::new(&p, &[0, 1]), &o), UnwrapError::InvalidIndexCount { .. }));
+        assert!(matches!(err(MeshInput::new(&p, &[0, 1, 3]), &o), UnwrapError::IndexOutOfRange { index: 3, .. }));
+        assert!(matches!(err(MeshInput::new(&nan, &[0, 1, 2]), &o), UnwrapError::NonFinitePosition { vertex: 1, .. }));
         for bad in [
-            UnwrapOptions {
-                texels_per_unit: Some(0.0),
-                ..o.clone()
-            },
-            UnwrapOptions {
-                texels_per_unit: Some(f32::INFINITY),
-                ..o.clone()
-            },
-            UnwrapOptions {
-                max_atlas_size: 4,
-                padding: 2,
-                ..o.clone()
-            },
+            UnwrapOptions { texels_per_unit: Some(0.0), ..o.clone() },
+            UnwrapOptions { texels_per_unit: Some(f32::INFINITY), ..o.clone() },
+            UnwrapOptions { max_atlas_size: 4, padding: 2, ..o.clone() },
         ] {
-            assert!(matches!(
-                err(MeshInput::new(&p, &[0, 1, 2]), &bad),
-                UnwrapError::InvalidOption { .. }
-            ));
+            assert!(matches!(err(MeshInput::new(&p, &[0, 1, 2]), &bad), UnwrapError::InvalidOption { .. }));
         }
     }
 }
@@ -667,25 +514,13 @@ fn xatlas_ffi_layouts_match_header() {
             $(assert_eq!(offset_of!($t, $f), $o, "{}.{}", stringify!($t), stringify!($f));)*
         };
     }
-    layout!(
-        Chart,
-        24,
-        8,
-        [atlasIndex = 0, indexArray = 8, indexCount = 16]
-    );
+    layout!(Chart, 24, 8, [atlasIndex = 0, indexArray = 8, indexCount = 16]);
     layout!(Vertex, 16, 4, [atlasIndex = 0, uv = 4, xref = 12]);
     layout!(
         Mesh,
         48,
         8,
-        [
-            chartArray = 0,
-            chartCount = 8,
-            indexArray = 16,
-            indexCount = 24,
-            vertexArray = 32,
-            vertexCount = 40,
-        ]
+        [chartArray = 0, chartCount = 8, indexArray = 16, indexCount = 24, vertexArray = 32, vertexCount = 40,]
     );
     layout!(
         xatlas_ffi::Atlas,
@@ -756,13 +591,7 @@ fn xatlas_ffi_layouts_match_header() {
     assert_eq!(size_of::<AddMeshError>(), 4);
     // Defaults are the header's.
     let c = ChartOptions::default();
-    assert_eq!(
-        (c.proxyFitMetricWeight, c.maxThreshold, c.growFaceCount),
-        (2.0, 2.0, 32)
-    );
+    assert_eq!((c.proxyFitMetricWeight, c.maxThreshold, c.growFaceCount), (2.0, 2.0, 32));
     let p = PackOptions::default();
-    assert_eq!(
-        (p.attempts, p.resolution, p.maxChartSize, p.padding),
-        (4096, 0, 1024, 0)
-    );
+    assert_eq!((p.attempts, p.resolution, p.maxChartSize, p.padding), (4096, 0, 1024, 0));
 }

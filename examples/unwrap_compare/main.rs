@@ -33,12 +33,7 @@ fn main() -> anyhow::Result<()> {
         println!("|---|---|---|---|---|---|---|---|---|---|");
         for (name, scene) in &scenes {
             let inputs: Vec<_> = scene.iter().map(|m| m.input()).collect();
-            let options = UnwrapOptions {
-                backend,
-                texels_per_unit: None,
-                max_atlas_size: page,
-                padding,
-            };
+            let options = UnwrapOptions { backend, texels_per_unit: None, max_atlas_size: page, padding };
             let mut times = Vec::new();
             let mut atlas = None;
             for _ in 0..runs.max(1) {
@@ -59,11 +54,7 @@ fn main() -> anyhow::Result<()> {
             } else {
                 format!(
                     "**no** ({} texels shared by charts, {} within a chart, {} flipped, gap {:?}, border {:?})",
-                    q.overlap_texels,
-                    q.self_overlap_texels,
-                    q.flipped_triangles,
-                    q.min_chart_gap,
-                    q.min_border_gap
+                    q.overlap_texels, q.self_overlap_texels, q.flipped_triangles, q.min_chart_gap, q.min_border_gap
                 )
             };
             println!(

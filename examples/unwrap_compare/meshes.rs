@@ -87,11 +87,9 @@ pub fn cube(size: f32) -> Mesh {
                 m.positions.push(p);
             }
             if sign > 0.0 {
-                m.indices
-                    .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+                m.indices.extend([base, base + 1, base + 2, base, base + 2, base + 3]);
             } else {
-                m.indices
-                    .extend([base, base + 2, base + 1, base, base + 3, base + 2]);
+                m.indices.extend([base, base + 2, base + 1, base, base + 3, base + 2]);
             }
         }
     }
@@ -101,10 +99,7 @@ pub fn cube(size: f32) -> Mesh {
 /// A horizontal square of side `size` at y = 0, centred at the origin, two triangles, facing +y.
 pub fn ground(size: f32) -> Mesh {
     let h = 0.5 * size;
-    Mesh {
-        positions: vec![[-h, 0.0, -h], [h, 0.0, -h], [h, 0.0, h], [-h, 0.0, h]],
-        indices: vec![0, 2, 1, 0, 3, 2],
-    }
+    Mesh { positions: vec![[-h, 0.0, -h], [h, 0.0, -h], [h, 0.0, h], [-h, 0.0, h]], indices: vec![0, 2, 1, 0, 3, 2] }
 }
 
 /// A torus around the y axis: ring radius `major`, tube radius `minor`, `segments` × `sides`
@@ -116,8 +111,7 @@ pub fn torus(segments: u32, sides: u32, major: f32, minor: f32) -> Mesh {
         for j in 0..=sides {
             let v = TAU * (j % sides) as f32 / sides as f32;
             let r = major + minor * v.cos();
-            m.positions
-                .push([r * u.cos(), minor * v.sin(), r * u.sin()]);
+            m.positions.push([r * u.cos(), minor * v.sin(), r * u.sin()]);
         }
     }
     let row = sides + 1;
@@ -145,8 +139,7 @@ pub fn troublesome() -> Mesh {
     for y in 0..n {
         for x in 0..n {
             let a = y * (n + 1) + x;
-            m.indices
-                .extend([a, a + n + 1, a + 1, a + 1, a + n + 1, a + n + 2]);
+            m.indices.extend([a, a + n + 1, a + 1, a + 1, a + n + 1, a + n + 2]);
         }
     }
     // Repeated index.
@@ -165,13 +158,11 @@ pub fn troublesome() -> Mesh {
     for (k, width) in [1e-4f32, 1e-6].into_iter().enumerate() {
         let b = m.positions.len() as u32;
         let z = 0.5 + k as f32;
-        m.positions
-            .extend([[0.0, 1.0, z], [4.0, 1.0, z], [2.0, 1.0 + width, z]]);
+        m.positions.extend([[0.0, 1.0, z], [4.0, 1.0, z], [2.0, 1.0 + width, z]]);
         m.indices.extend([b, b + 1, b + 2]);
     }
     // Unused vertices.
-    m.positions
-        .extend([[100.0, 100.0, 100.0], [-5.0, 3.0, 2.0]]);
+    m.positions.extend([[100.0, 100.0, 100.0], [-5.0, 3.0, 2.0]]);
     m
 }
 
@@ -239,10 +230,7 @@ fn icosphere(subdivisions: u32) -> Mesh {
         }
         tris = next;
     }
-    Mesh {
-        positions: p,
-        indices: tris.into_iter().flatten().collect(),
-    }
+    Mesh { positions: p, indices: tris.into_iter().flatten().collect() }
 }
 
 /// A statue-like stand-in for a scanned model: an icosphere (5 subdivisions: 10242 vertices,
@@ -273,13 +261,7 @@ pub fn scenes() -> Vec<(&'static str, Vec<Mesh>)> {
         ("cube", vec![cube(1.0)]),
         ("torus", vec![torus(48, 24, 1.0, 0.3)]),
         ("ground", vec![ground(10.0)]),
-        (
-            "sphere on ground",
-            vec![
-                uv_sphere(48, 24, 1.0).translated([0.0, 1.0, 0.0]),
-                ground(10.0),
-            ],
-        ),
+        ("sphere on ground", vec![uv_sphere(48, 24, 1.0).translated([0.0, 1.0, 0.0]), ground(10.0)]),
         ("statue", vec![statue()]),
     ]
 }

@@ -33,10 +33,7 @@ pub fn packed_bytes(asset: &SourceAsset, accessor: &gltf::Accessor) -> Result<Ve
         Some(view) => {
             let bytes = asset.view_bytes(&view)?;
             let stride = view.stride().unwrap_or(size);
-            ensure!(
-                stride >= size,
-                "{label}: byteStride {stride} is smaller than its element ({size} bytes)"
-            );
+            ensure!(stride >= size, "{label}: byteStride {stride} is smaller than its element ({size} bytes)");
             if count > 0 {
                 let end = (count - 1)
                     .checked_mul(stride)
@@ -71,10 +68,7 @@ pub fn packed_bytes(asset: &SourceAsset, accessor: &gltf::Accessor) -> Result<Ve
     };
     if let Some(sparse) = accessor.sparse() {
         let n = sparse.count();
-        ensure!(
-            n <= count,
-            "{label}: sparse count {n} exceeds the accessor's count {count}"
-        );
+        ensure!(n <= count, "{label}: sparse count {n} exceeds the accessor's count {count}");
         let indices = sparse.indices();
         let index_bytes = asset.view_bytes(&indices.view())?;
         let index_size = match indices.index_type() {
@@ -85,8 +79,7 @@ pub fn packed_bytes(asset: &SourceAsset, accessor: &gltf::Accessor) -> Result<Ve
         let values = sparse.values();
         let value_bytes = asset.view_bytes(&values.view())?;
         ensure!(
-            indices.offset() + n * index_size <= index_bytes.len()
-                && values.offset() + n * size <= value_bytes.len(),
+            indices.offset() + n * index_size <= index_bytes.len() && values.offset() + n * size <= value_bytes.len(),
             "{label}: sparse data runs past the end of its bufferView"
         );
         for k in 0..n {
@@ -96,13 +89,9 @@ pub fn packed_bytes(asset: &SourceAsset, accessor: &gltf::Accessor) -> Result<Ve
                 2 => u16::from_le_bytes([index_bytes[at], index_bytes[at + 1]]) as usize,
                 _ => u32::from_le_bytes(index_bytes[at..at + 4].try_into().unwrap()) as usize,
             };
-            ensure!(
-                target < count,
-                "{label}: sparse index {target} is past its count {count}"
-            );
+            ensure!(target < count, "{label}: sparse index {target} is past its count {count}");
             let from = values.offset() + k * size;
-            out[target * size..(target + 1) * size]
-                .copy_from_slice(&value_bytes[from..from + size]);
+            out[target * size..(target + 1) * size].copy_from_slice(&value_bytes[from..from + size]);
         }
     }
     Ok(out)
@@ -119,20 +108,8 @@ pub fn read_floats(asset: &SourceAsset, accessor: &gltf::Accessor) -> Result<Vec
     let bytes = packed_bytes(asset, accessor)?;
     let normalized = accessor.normalized();
     let values = match accessor.data_type() {
-        DataType::F32 => bytes
-            .chunks_exact(4)
-            .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
-            .collect(),
-        DataType::U8 => bytes
-            .iter()
-            .map(|&c| {
-                if normalized {
-                    c as f32 / 255.0
-                } else {
-                    c as f32
-                }
-            })
-            .collect(),
+        DataType::F32 => bytes.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect(),
+        DataType::U8 => bytes.iter().map(|&c| if normalized { c as f32 / 255.0 } else { c as f32 }).collect(),
         DataType::I8 => bytes
             .iter()
             .map(|&c| {
@@ -151,60 +128,34 @@ pub fn read_floats(asset: &SourceAsset, accessor: &gltf::Accessor) -> Result<Vec
             .chunks_exact(2)
             .map(|c| {
                 let c = i16::from_le_bytes([c[0], c[1]]) as f32;
-                if normalized {
-                    (c / 32767.0).max(-1.0)
-                } else {
-                    c
-                }
+                if normalized { (c / 32767.0).max(-1.0) } else { c }
             })
             .collect(),
-        DataType::U32 => bytes
-            .chunks_exact(4)
-            .map(|c| u32::from_le_bytes(c.try_into().unwrap()) as f32)
-            .collect(),
+        DataType::U32 => bytes.chunks_exact(4).map(|c| u32::from_le_bytes(c.try_into().unwrap()) as f32).collect(),
     };
     Ok(values)
 }
 
 /// The accessor as vectors of `N` floats; errors if it has another width.
-pub fn read_vectors<const N: usize>(
-    asset: &SourceAsset,
-    accessor: &gltf::Accessor,
-) -> Result<Vec<[f32; N]>> {
+pub fn read_vectors<const N: usize>(asset: &SourceAsset, accessor: &gltf::Accessor) -> Result<Vec<[f32; N]>> {
     let width = accessor.dimensions().multiplicity();
-    ensure!(
-        width == N,
-        "accessor {}: expected {N} components, found {width}",
-        accessor.index()
-    );
+    ensure!(width == N, "accessor {}: expected {N} components, found {width}", accessor.index());
     let floats = read_floats(asset, accessor)?;
-    Ok(floats
-        .chunks_exact(N)
-        .map(|c| c.try_into().unwrap())
-        .collect())
+    Ok(floats.chunks_exact(N).map(|c| c.try_into().unwrap()).collect())
 }
 
 /// An index accessor (unsigned byte, short or int scalars) as u32.
 pub fn read_indices(asset: &SourceAsset, accessor: &gltf::Accessor) -> Result<Vec<u32>> {
     ensure!(
         accessor.dimensions() == Dimensions::Scalar
-            && matches!(
-                accessor.data_type(),
-                DataType::U8 | DataType::U16 | DataType::U32
-            ),
+            && matches!(accessor.data_type(), DataType::U8 | DataType::U16 | DataType::U32),
         "accessor {}: indices must be unsigned scalars",
         accessor.index()
     );
     let bytes = packed_bytes(asset, accessor)?;
     Ok(match accessor.data_type() {
         DataType::U8 => bytes.iter().map(|&b| b as u32).collect(),
-        DataType::U16 => bytes
-            .chunks_exact(2)
-            .map(|c| u16::from_le_bytes([c[0], c[1]]) as u32)
-            .collect(),
-        _ => bytes
-            .chunks_exact(4)
-            .map(|c| u32::from_le_bytes(c.try_into().unwrap()))
-            .collect(),
+        DataType::U16 => bytes.chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]]) as u32).collect(),
+        _ => bytes.chunks_exact(4).map(|c| u32::from_le_bytes(c.try_into().unwrap())).collect(),
     })
 }

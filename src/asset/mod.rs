@@ -48,8 +48,7 @@ impl SourceAsset {
     /// resolved against; `None` refuses external files.
     pub fn from_bytes(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<SourceAsset> {
         let (json_bytes, blob) = if bytes.starts_with(b"glTF") {
-            let glb = gltf::binary::Glb::from_slice(bytes)
-                .map_err(|e| anyhow!("not a valid .glb: {e}"))?;
+            let glb = gltf::binary::Glb::from_slice(bytes).map_err(|e| anyhow!("not a valid .glb: {e}"))?;
             (glb.json.into_owned(), glb.bin.map(|b| b.into_owned()))
         } else {
             if !looks_like_json(bytes) {
@@ -62,18 +61,15 @@ impl SourceAsset {
         check_required_extensions(&json)?;
         let root: gltf::json::Root =
             serde_json::from_value(json.clone()).map_err(|e| anyhow!("invalid glTF JSON: {e}"))?;
-        let document = gltf::Document::from_json(root)
-            .map_err(|e| anyhow!("invalid glTF: {}", describe_validation(&e)))?;
+        let document =
+            gltf::Document::from_json(root).map_err(|e| anyhow!("invalid glTF: {}", describe_validation(&e)))?;
 
         let mut buffers = Vec::new();
         for buffer in document.buffers() {
             let data = match buffer.source() {
-                gltf::buffer::Source::Bin => blob.clone().ok_or_else(|| {
-                    anyhow!(
-                        "buffer {} refers to a GLB binary chunk that is missing",
-                        buffer.index()
-                    )
-                })?,
+                gltf::buffer::Source::Bin => blob
+                    .clone()
+                    .ok_or_else(|| anyhow!("buffer {} refers to a GLB binary chunk that is missing", buffer.index()))?,
                 gltf::buffer::Source::Uri(uri) => {
                     resolve_uri(uri, base).with_context(|| format!("buffer {}", buffer.index()))?
                 }
@@ -88,21 +84,12 @@ impl SourceAsset {
             }
             buffers.push(data);
         }
-        Ok(SourceAsset {
-            path: path.to_path_buf(),
-            document,
-            json,
-            buffers,
-        })
+        Ok(SourceAsset { path: path.to_path_buf(), document, json, buffers })
     }
 
     /// The encoded bytes (PNG, JPEG, ...) of image `index` and its MIME type if known.
     pub fn image_bytes(&self, index: usize) -> Result<(Vec<u8>, Option<String>)> {
-        let image = self
-            .document
-            .images()
-            .nth(index)
-            .ok_or_else(|| anyhow!("image {index} does not exist"))?;
+        let image = self.document.images().nth(index).ok_or_else(|| anyhow!("image {index} does not exist"))?;
         match image.source() {
             gltf::image::Source::View { view, mime_type } => {
                 let bytes = self.view_bytes(&view)?;
@@ -110,8 +97,7 @@ impl SourceAsset {
             }
             gltf::image::Source::Uri { uri, mime_type } => {
                 let base = self.path.parent().unwrap_or(Path::new("."));
-                let bytes =
-                    resolve_uri(uri, Some(base)).with_context(|| format!("image {index}"))?;
+                let bytes = resolve_uri(uri, Some(base)).with_context(|| format!("image {index}"))?;
                 Ok((bytes, mime_type.map(str::to_string)))
             }
         }
@@ -120,10 +106,7 @@ impl SourceAsset {
     /// The bytes a buffer view covers, bounds-checked.
     pub fn view_bytes(&self, view: &gltf::buffer::View) -> Result<&[u8]> {
         let buffer = &self.buffers[view.buffer().index()];
-        let end = view
-            .offset()
-            .checked_add(view.length())
-            .filter(|&end| end <= buffer.len());
+        let end = view.offset().checked_add(view.length()).filter(|&end| end <= buffer.len());
         match end {
             Some(end) => Ok(&buffer[view.offset()..end]),
             None => bail!(
@@ -149,9 +132,7 @@ fn check_required_extensions(json: &serde_json::Value) -> Result<()> {
     };
     for name in required.iter().filter_map(|v| v.as_str()) {
         match name {
-            "KHR_draco_mesh_compression"
-            | "EXT_meshopt_compression"
-            | "KHR_meshopt_compression" => bail!(
+            "KHR_draco_mesh_compression" | "EXT_meshopt_compression" | "KHR_meshopt_compression" => bail!(
                 "meshes are compressed with {name}, which bake does not decode; \
                  decompress them first, e.g. `npx @gltf-transform/cli cp IN.glb PLAIN.glb`"
             ),
@@ -166,9 +147,7 @@ fn check_required_extensions(json: &serde_json::Value) -> Result<()> {
 /// must stay inside `base`.
 fn resolve_uri(uri: &str, base: Option<&Path>) -> Result<Vec<u8>> {
     if let Some(rest) = uri.strip_prefix("data:") {
-        let (header, payload) = rest
-            .split_once(',')
-            .ok_or_else(|| anyhow!("malformed data URI"))?;
+        let (header, payload) = rest.split_once(',').ok_or_else(|| anyhow!("malformed data URI"))?;
         if !header.ends_with(";base64") {
             bail!("data URI is not base64-encoded");
         }
@@ -179,18 +158,11 @@ fn resolve_uri(uri: &str, base: Option<&Path>) -> Result<Vec<u8>> {
     if uri.contains("://") {
         bail!("refusing to fetch '{uri}': only files beside the asset and data URIs are read");
     }
-    let base = base.ok_or_else(|| {
-        anyhow!("'{uri}' is an external file, but the asset was given without a folder")
-    })?;
+    let base = base.ok_or_else(|| anyhow!("'{uri}' is an external file, but the asset was given without a folder"))?;
     let relative = percent_decode(uri)?;
     let relative = Path::new(&relative);
     if relative.is_absolute()
-        || relative.components().any(|c| {
-            matches!(
-                c,
-                std::path::Component::ParentDir | std::path::Component::Prefix(_)
-            )
-        })
+        || relative.components().any(|c| matches!(c, std::path::Component::ParentDir | std::path::Component::Prefix(_)))
     {
         bail!("refusing '{uri}': it points outside the asset's folder");
     }
@@ -205,9 +177,7 @@ fn percent_decode(uri: &str) -> Result<String> {
     let mut i = 0;
     while i < bytes.len() {
         if bytes[i] == b'%' {
-            let hex = bytes
-                .get(i + 1..i + 3)
-                .and_then(|h| std::str::from_utf8(h).ok());
+            let hex = bytes.get(i + 1..i + 3).and_then(|h| std::str::from_utf8(h).ok());
             let value = hex.and_then(|h| u8::from_str_radix(h, 16).ok());
             out.push(value.ok_or_else(|| anyhow!("bad percent-escape in URI '{uri}'"))?);
             i += 3;
@@ -223,11 +193,8 @@ fn percent_decode(uri: &str) -> Result<String> {
 fn describe_validation(error: &gltf::Error) -> String {
     match error {
         gltf::Error::Validation(list) => {
-            let mut parts: Vec<String> = list
-                .iter()
-                .take(3)
-                .map(|(path, e)| format!("{} {e}", path.as_str()))
-                .collect();
+            let mut parts: Vec<String> =
+                list.iter().take(3).map(|(path, e)| format!("{} {e}", path.as_str())).collect();
             if list.len() > 3 {
                 parts.push(format!("and {} more", list.len() - 3));
             }
@@ -250,12 +217,7 @@ mod tests {
     #[test]
     fn uris_outside_the_folder_are_refused() {
         let base = Path::new("/tmp");
-        for uri in [
-            "../etc/passwd",
-            "/etc/passwd",
-            "a/../../b.bin",
-            "http://example.com/x.bin",
-        ] {
+        for uri in ["../etc/passwd", "/etc/passwd", "a/../../b.bin", "http://example.com/x.bin"] {
             let error = resolve_uri(uri, Some(base)).unwrap_err().to_string();
             assert!(error.contains("refus"), "{uri}: {error}");
         }
@@ -263,9 +225,6 @@ mod tests {
 
     #[test]
     fn data_uris_decode() {
-        assert_eq!(
-            resolve_uri("data:application/octet-stream;base64,AAEC", None).unwrap(),
-            vec![0, 1, 2]
-        );
+        assert_eq!(resolve_uri("data:application/octet-stream;base64,AAEC", None).unwrap(), vec![0, 1, 2]);
     }
 }

@@ -48,9 +48,7 @@ use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 use std::f64::consts::PI;
 
-use super::{
-    EnvironmentMap, Light, LightMode, LightSet, cos_diff, luminance, normalize3, rotate_direction,
-};
+use super::{EnvironmentMap, Light, LightMode, LightSet, cos_diff, luminance, normalize3, rotate_direction};
 
 /// Grid cells at most, for the budget mode's tables (≈ 2 M cells: 64 MiB of f64 sums).
 const MAX_GRID_CELLS: usize = 1 << 21;
@@ -92,24 +90,14 @@ impl LightSet {
     /// # Panics
     /// If `intensity` is negative or not finite, `rotation_deg` is not finite, the map is empty
     /// or its texel count does not match its size, or the mode has N = 0 / K = 0.
-    pub fn extract(
-        map: &EnvironmentMap,
-        mode: LightMode,
-        rotation_deg: f32,
-        intensity: f32,
-    ) -> LightSet {
+    pub fn extract(map: &EnvironmentMap, mode: LightMode, rotation_deg: f32, intensity: f32) -> LightSet {
         assert!(
             intensity.is_finite() && intensity >= 0.0,
             "environment intensity must be finite and ≥ 0, got {intensity}"
         );
+        assert!(rotation_deg.is_finite(), "environment rotation must be finite");
         assert!(
-            rotation_deg.is_finite(),
-            "environment rotation must be finite"
-        );
-        assert!(
-            map.width > 0
-                && map.height > 0
-                && map.texels.len() == map.width as usize * map.height as usize,
+            map.width > 0 && map.height > 0 && map.texels.len() == map.width as usize * map.height as usize,
             "environment map size {}×{} does not match its {} texels",
             map.width,
             map.height,
@@ -132,28 +120,18 @@ impl LightSet {
         let mut captured = [0.0f64; 3];
         for acc in &accs {
             let omega = acc.omega as f32;
-            let radiance = acc.e.map(|e| {
-                (e * intensity / omega as f64).clamp(f32::MIN as f64, f32::MAX as f64) as f32
-            });
+            let radiance = acc.e.map(|e| (e * intensity / omega as f64).clamp(f32::MIN as f64, f32::MAX as f64) as f32);
             if radiance == [0.0; 3] || omega.is_nan() || omega <= 0.0 {
                 dropped += 1;
                 continue;
             }
             let wd_len = (acc.wd[0].powi(2) + acc.wd[1].powi(2) + acc.wd[2].powi(2)).sqrt();
-            let dir = if acc.w > 0.0 && wd_len > 1e-9 * acc.w {
-                normalize3(acc.wd)
-            } else {
-                acc.fallback
-            };
+            let dir = if acc.w > 0.0 && wd_len > 1e-9 * acc.w { normalize3(acc.wd) } else { acc.fallback };
             let d = normalize3(rotate_direction(dir, rotation));
             for c in 0..3 {
                 captured[c] += radiance[c] as f64 * omega as f64;
             }
-            lights.push(Light {
-                direction: d.map(|v| v as f32),
-                solid_angle: omega,
-                radiance,
-            });
+            lights.push(Light { direction: d.map(|v| v as f32), solid_angle: omega, radiance });
         }
         let integral = map.integral();
         let map_integral = integral.map(|v| v * intensity);
@@ -172,14 +150,7 @@ impl LightSet {
         if intensity > 0.0 && integral.iter().all(|&v| v == 0.0) {
             notes.push("the environment is black: no lights".into());
         }
-        LightSet {
-            lights,
-            mode,
-            map_integral,
-            captured,
-            dropped,
-            notes,
-        }
+        LightSet { lights, mode, map_integral, captured, dropped, notes }
     }
 }
 
@@ -243,15 +214,7 @@ impl<'a> Fine<'a> {
                 (theta.sin(), theta.cos(), dphi * cos_diff(a, b))
             })
             .collect();
-        Fine {
-            map,
-            ux,
-            uy,
-            wf,
-            hf,
-            cols,
-            rows,
-        }
+        Fine { map, ux, uy, wf, hf, cols, rows }
     }
 
     /// Calls `f(fine_row, fine_col, radiance, energy L·Ω, weight max(lum,0)·Ω, direction)` for
@@ -297,17 +260,9 @@ fn cube_texel(d: [f64; 3], n: usize) -> usize {
     let [x, y, z] = d;
     let (ax, ay, az) = (x.abs(), y.abs(), z.abs());
     let (face, sc, tc, ma) = if ax >= ay && ax >= az {
-        if x > 0.0 {
-            (0, -z, -y, ax)
-        } else {
-            (1, z, -y, ax)
-        }
+        if x > 0.0 { (0, -z, -y, ax) } else { (1, z, -y, ax) }
     } else if ay >= az {
-        if y > 0.0 {
-            (2, x, z, ay)
-        } else {
-            (3, x, -z, ay)
-        }
+        if y > 0.0 { (2, x, z, ay) } else { (3, x, -z, ay) }
     } else if z > 0.0 {
         (4, x, -y, az)
     } else {
@@ -419,11 +374,7 @@ impl Stats {
     }
     /// Energy-weighted angular variance σ² (rad² for small regions), in [0, 1].
     fn sigma2(&self) -> f64 {
-        if self.e <= 0.0 {
-            0.0
-        } else {
-            (1.0 - self.coherent() / self.e).clamp(0.0, 1.0)
-        }
+        if self.e <= 0.0 { 0.0 } else { (1.0 - self.coherent() / self.e).clamp(0.0, 1.0) }
     }
 }
 
@@ -482,18 +433,10 @@ impl Grid {
         let col_b = boundaries(fine.wf, wg);
         let row_b = boundaries(fine.hf, hg);
         let gx_of_shifted = lookup(&col_b);
-        let fc_to_gx: Vec<u32> = (0..fine.wf)
-            .map(|fc| gx_of_shifted[(fc + fine.wf - shift) % fine.wf])
-            .collect();
+        let fc_to_gx: Vec<u32> = (0..fine.wf).map(|fc| gx_of_shifted[(fc + fine.wf - shift) % fine.wf]).collect();
         let fr_to_gy = lookup(&row_b);
-        let phi_b = col_b
-            .iter()
-            .map(|&b| b as f64 * 2.0 * PI / fine.wf as f64)
-            .collect();
-        let theta_b = row_b
-            .iter()
-            .map(|&b| b as f64 * PI / fine.hf as f64)
-            .collect();
+        let phi_b = col_b.iter().map(|&b| b as f64 * 2.0 * PI / fine.wf as f64).collect();
+        let theta_b = row_b.iter().map(|&b| b as f64 * PI / fine.hf as f64).collect();
         let phi_seam = (shift as f64 / fine.wf as f64 - 0.5) * 2.0 * PI;
 
         let stride = wg + 1;
@@ -510,32 +453,16 @@ impl Grid {
         });
         for y in 1..=hg {
             for x in 1..=wg {
-                let (l, u, ul) = (
-                    y * stride + x - 1,
-                    (y - 1) * stride + x,
-                    (y - 1) * stride + x - 1,
-                );
+                let (l, u, ul) = (y * stride + x - 1, (y - 1) * stride + x, (y - 1) * stride + x - 1);
                 let k = y * stride + x;
                 let (left, up, upleft) = (sat[l], sat[u], sat[ul]);
                 for (c, v) in sat[k].iter_mut().enumerate() {
                     *v += left[c] + up[c] - upleft[c];
                 }
-                nz[k] = nz[k]
-                    .wrapping_add(nz[l])
-                    .wrapping_add(nz[u])
-                    .wrapping_sub(nz[ul]);
+                nz[k] = nz[k].wrapping_add(nz[l]).wrapping_add(nz[u]).wrapping_sub(nz[ul]);
             }
         }
-        Grid {
-            wg,
-            phi_b,
-            theta_b,
-            phi_seam,
-            sat,
-            nz,
-            fc_to_gx,
-            fr_to_gy,
-        }
+        Grid { wg, phi_b, theta_b, phi_seam, sat, nz, fc_to_gx, fr_to_gy }
     }
 
     fn stats(&self, r: &Rect) -> Stats {
@@ -543,18 +470,11 @@ impl Grid {
         let i = |x: u32, y: u32| y as usize * stride + x as usize;
         let (a, b, c, d) = (i(r.x1, r.y1), i(r.x0, r.y1), i(r.x1, r.y0), i(r.x0, r.y0));
         let v = |k: usize| self.sat[a][k] - self.sat[b][k] - self.sat[c][k] + self.sat[d][k];
-        let nz = self.nz[a]
-            .wrapping_sub(self.nz[b])
-            .wrapping_sub(self.nz[c])
-            .wrapping_add(self.nz[d]);
+        let nz = self.nz[a].wrapping_sub(self.nz[b]).wrapping_sub(self.nz[c]).wrapping_add(self.nz[d]);
         if nz == 0 {
             return Stats::default();
         }
-        Stats {
-            e: v(0).max(0.0),
-            s: [v(1), v(2), v(3)],
-            nz,
-        }
+        Stats { e: v(0).max(0.0), s: [v(1), v(2), v(3)], nz }
     }
 
     fn omega(&self, r: &Rect) -> f64 {
@@ -577,36 +497,16 @@ impl Grid {
         let y = (p1 - p0) * (sc(t1) - sc(t0));
         let v = [x, y, z];
         let len = (x * x + y * y + z * z).sqrt();
-        if len > 1e-9 * self.omega(r).max(1e-300) {
-            normalize3(v)
-        } else {
-            [0.0, 1.0, 0.0]
-        }
+        if len > 1e-9 * self.omega(r).max(1e-300) { normalize3(v) } else { [0.0, 1.0, 0.0] }
     }
 
     /// Strip `k` (0-based, counted inward) of `r` along `side`: 0 left, 1 right, 2 top, 3 bottom.
     fn strip(r: &Rect, side: u8, k: u32) -> Rect {
         match side {
-            0 => Rect {
-                x0: r.x0 + k,
-                x1: r.x0 + k + 1,
-                ..*r
-            },
-            1 => Rect {
-                x0: r.x1 - k - 1,
-                x1: r.x1 - k,
-                ..*r
-            },
-            2 => Rect {
-                y0: r.y0 + k,
-                y1: r.y0 + k + 1,
-                ..*r
-            },
-            _ => Rect {
-                y0: r.y1 - k - 1,
-                y1: r.y1 - k,
-                ..*r
-            },
+            0 => Rect { x0: r.x0 + k, x1: r.x0 + k + 1, ..*r },
+            1 => Rect { x0: r.x1 - k - 1, x1: r.x1 - k, ..*r },
+            2 => Rect { y0: r.y0 + k, y1: r.y0 + k + 1, ..*r },
+            _ => Rect { y0: r.y1 - k - 1, y1: r.y1 - k, ..*r },
         }
     }
 
@@ -635,34 +535,10 @@ impl Grid {
                 continue;
             }
             let (margin, cut) = match side {
-                0 => (
-                    Rect { x1: r.x0 + k, ..*r },
-                    Cut {
-                        vertical: true,
-                        at: r.x0 + k,
-                    },
-                ),
-                1 => (
-                    Rect { x0: r.x1 - k, ..*r },
-                    Cut {
-                        vertical: true,
-                        at: r.x1 - k,
-                    },
-                ),
-                2 => (
-                    Rect { y1: r.y0 + k, ..*r },
-                    Cut {
-                        vertical: false,
-                        at: r.y0 + k,
-                    },
-                ),
-                _ => (
-                    Rect { y0: r.y1 - k, ..*r },
-                    Cut {
-                        vertical: false,
-                        at: r.y1 - k,
-                    },
-                ),
+                0 => (Rect { x1: r.x0 + k, ..*r }, Cut { vertical: true, at: r.x0 + k }),
+                1 => (Rect { x0: r.x1 - k, ..*r }, Cut { vertical: true, at: r.x1 - k }),
+                2 => (Rect { y1: r.y0 + k, ..*r }, Cut { vertical: false, at: r.y0 + k }),
+                _ => (Rect { y0: r.y1 - k, ..*r }, Cut { vertical: false, at: r.y1 - k }),
             };
             let mo = self.omega(&margin);
             if mo >= TRIM_GAMMA * omega && best.is_none_or(|(b, _)| mo > b) {
@@ -685,23 +561,11 @@ impl Grid {
         };
         for x in r.x0 + 1..r.x1 {
             let a = self.stats(&Rect { x1: x, ..*r });
-            consider(
-                a,
-                Cut {
-                    vertical: true,
-                    at: x,
-                },
-            );
+            consider(a, Cut { vertical: true, at: x });
         }
         for y in r.y0 + 1..r.y1 {
             let a = self.stats(&Rect { y1: y, ..*r });
-            consider(
-                a,
-                Cut {
-                    vertical: false,
-                    at: y,
-                },
-            );
+            consider(a, Cut { vertical: false, at: y });
         }
         match best {
             Some((q, cut)) if q - base > 1e-14 * st.e => Some(cut),
@@ -746,12 +610,7 @@ struct Node {
 
 fn evaluate(grid: &Grid, rect: Rect, floor2: f64) -> Node {
     let st = grid.stats(&rect);
-    let node = |priority, action| Node {
-        rect,
-        nonempty: st.nz > 0,
-        priority,
-        action,
-    };
+    let node = |priority, action| Node { rect, nonempty: st.nz > 0, priority, action };
     if st.nz == 0 || st.e <= 0.0 || rect.cells() <= 1 {
         return node(0.0, Action::Final);
     }
@@ -797,25 +656,15 @@ fn budget_lights(map: &EnvironmentMap, k: usize) -> (Vec<Acc>, Vec<String>) {
     let mut nodes: Vec<Node> = Vec::new();
     let mut heap: BinaryHeap<(OrdF64, Reverse<usize>)> = BinaryHeap::new();
     let mut finals: Vec<usize> = Vec::new();
-    let push =
-        |node: Node, nodes: &mut Vec<Node>, heap: &mut BinaryHeap<_>, finals: &mut Vec<usize>| {
-            let id = nodes.len();
-            match node.action {
-                Action::Final => finals.push(id),
-                _ => heap.push((OrdF64(node.priority), Reverse(id))),
-            }
-            nodes.push(node);
-        };
-    let root = evaluate(
-        &grid,
-        Rect {
-            x0: 0,
-            x1: wg as u32,
-            y0: 0,
-            y1: hg as u32,
-        },
-        floor2,
-    );
+    let push = |node: Node, nodes: &mut Vec<Node>, heap: &mut BinaryHeap<_>, finals: &mut Vec<usize>| {
+        let id = nodes.len();
+        match node.action {
+            Action::Final => finals.push(id),
+            _ => heap.push((OrdF64(node.priority), Reverse(id))),
+        }
+        nodes.push(node);
+    };
+    let root = evaluate(&grid, Rect { x0: 0, x1: wg as u32, y0: 0, y1: hg as u32 }, floor2);
     let mut count = root.nonempty as usize;
     debug_assert!(count <= k);
     push(root, &mut nodes, &mut heap, &mut finals);
@@ -842,18 +691,8 @@ fn budget_lights(map: &EnvironmentMap, k: usize) -> (Vec<Acc>, Vec<String>) {
             continue;
         }
         count = after;
-        push(
-            evaluate(&grid, a, floor2),
-            &mut nodes,
-            &mut heap,
-            &mut finals,
-        );
-        push(
-            evaluate(&grid, b, floor2),
-            &mut nodes,
-            &mut heap,
-            &mut finals,
-        );
+        push(evaluate(&grid, a, floor2), &mut nodes, &mut heap, &mut finals);
+        push(evaluate(&grid, b, floor2), &mut nodes, &mut heap, &mut finals);
     }
     finals.sort_unstable();
 
@@ -866,11 +705,7 @@ fn budget_lights(map: &EnvironmentMap, k: usize) -> (Vec<Acc>, Vec<String>) {
             let row = y as usize * wg;
             region_of[row + r.x0 as usize..row + r.x1 as usize].fill(i as u32);
         }
-        accs.push(Acc {
-            omega: grid.omega(&r),
-            fallback: grid.geometric_centre(&r),
-            ..Acc::default()
-        });
+        accs.push(Acc { omega: grid.omega(&r), fallback: grid.geometric_centre(&r), ..Acc::default() });
     }
     fine.for_each_lit(|fr, fc, e, lw, d| {
         let cell = grid.fr_to_gy[fr] as usize * wg + grid.fc_to_gx[fc] as usize;
@@ -935,20 +770,10 @@ mod tests {
         let map = EnvironmentMap::from_fn(16, 8, |_| [1.0; 3]);
         let fine = Fine::new(&map, 1, 1);
         let grid = Grid::build(&fine, 16, 8);
-        let c = grid.geometric_centre(&Rect {
-            x0: 0,
-            x1: 16,
-            y0: 0,
-            y1: 2,
-        });
+        let c = grid.geometric_centre(&Rect { x0: 0, x1: 16, y0: 0, y1: 2 });
         assert!((c[1] - 1.0).abs() < 1e-9, "{c:?}");
         // A quarter wedge around the seam offset still points to the right longitude.
-        let r = Rect {
-            x0: 0,
-            x1: 1,
-            y0: 3,
-            y1: 5,
-        };
+        let r = Rect { x0: 0, x1: 1, y0: 3, y1: 5 };
         let c = grid.geometric_centre(&r);
         let phi = c[2].atan2(c[0]);
         let expect = grid.phi_seam + 0.5 * (grid.phi_b[0] + grid.phi_b[1]);

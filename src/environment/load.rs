@@ -46,16 +46,10 @@ impl EnvironmentMap {
     ///   their count and the energy removed relative to the map's integral.
     ///
     /// Errors are [`EnvLoadError`]s: one line naming the file and the problem.
-    pub fn load(
-        path: impl AsRef<Path>,
-        options: &EnvLoadOptions,
-    ) -> anyhow::Result<LoadedEnvironment> {
+    pub fn load(path: impl AsRef<Path>, options: &EnvLoadOptions) -> anyhow::Result<LoadedEnvironment> {
         let path = path.as_ref();
         load_inner(path, options).map_err(|message| {
-            anyhow::Error::new(EnvLoadError {
-                path: path.to_path_buf(),
-                message: one_line(&message),
-            })
+            anyhow::Error::new(EnvLoadError { path: path.to_path_buf(), message: one_line(&message) })
         })
     }
 }
@@ -72,8 +66,7 @@ fn load_inner(path: &Path, options: &EnvLoadOptions) -> Result<LoadedEnvironment
     let mut head = [0u8; 16];
     let n = read_up_to(&mut file, &mut head).map_err(|e| format!("cannot read file: {e}"))?;
     let head = &head[..n];
-    file.seek(SeekFrom::Start(0))
-        .map_err(|e| format!("cannot read file: {e}"))?;
+    file.seek(SeekFrom::Start(0)).map_err(|e| format!("cannot read file: {e}"))?;
     let mut notices = Vec::new();
     let map = if head.starts_with(&EXR_MAGIC) {
         read_exr(file, &mut notices)?
@@ -124,10 +117,7 @@ fn describe_content(head: &[u8]) -> String {
             return what.into();
         }
     }
-    if head
-        .iter()
-        .all(|&b| b.is_ascii_graphic() || b.is_ascii_whitespace())
-    {
+    if head.iter().all(|&b| b.is_ascii_graphic() || b.is_ascii_whitespace()) {
         "it looks like a text file".into()
     } else {
         let hex: Vec<String> = head.iter().take(4).map(|b| format!("{b:02x}")).collect();
@@ -229,17 +219,10 @@ fn read_exr(file: File, notices: &mut Vec<String>) -> Result<EnvironmentMap, Str
     let mut chosen: Option<Candidate> = None;
     // 1. the first layer with R, G, B
     for (p, pf, chs) in &groups {
-        if let (Some(r), Some(g), Some(b)) = (
-            find(chs, &["R", "red"]),
-            find(chs, &["G", "green"]),
-            find(chs, &["B", "blue"]),
-        ) {
-            chosen = Some(Candidate {
-                part: *p,
-                prefix: pf.clone(),
-                channels: [r, g, b],
-                grey_from: None,
-            });
+        if let (Some(r), Some(g), Some(b)) =
+            (find(chs, &["R", "red"]), find(chs, &["G", "green"]), find(chs, &["B", "blue"]))
+        {
+            chosen = Some(Candidate { part: *p, prefix: pf.clone(), channels: [r, g, b], grey_from: None });
             break;
         }
     }
@@ -248,12 +231,7 @@ fn read_exr(file: File, notices: &mut Vec<String>) -> Result<EnvironmentMap, Str
         for (p, pf, chs) in &groups {
             if let Some(y) = find(chs, &["Y", "L"]) {
                 let name = chs.iter().find(|c| c.1 == y).unwrap().0.clone();
-                chosen = Some(Candidate {
-                    part: *p,
-                    prefix: pf.clone(),
-                    channels: [y; 3],
-                    grey_from: Some(name),
-                });
+                chosen = Some(Candidate { part: *p, prefix: pf.clone(), channels: [y; 3], grey_from: Some(name) });
                 break;
             }
         }
@@ -273,54 +251,34 @@ fn read_exr(file: File, notices: &mut Vec<String>) -> Result<EnvironmentMap, Str
         }
     }
     let Some(c) = chosen else {
-        let mut names: Vec<String> = layers
-            .iter()
-            .flat_map(|l| l.channel_data.list.iter().map(|c| c.name.to_string()))
-            .collect();
+        let mut names: Vec<String> =
+            layers.iter().flat_map(|l| l.channel_data.list.iter().map(|c| c.name.to_string())).collect();
         names.truncate(12);
         return Err(format!(
             "no colour channels: found {} but need R, G, B (optionally with a layer prefix) \
              or a single luminance channel",
-            if names.is_empty() {
-                "no channels".to_string()
-            } else {
-                format!("channels {}", names.join(", "))
-            }
+            if names.is_empty() { "no channels".to_string() } else { format!("channels {}", names.join(", ")) }
         ));
     };
 
-    let part_name = layers[c.part]
-        .attributes
-        .layer_name
-        .as_ref()
-        .map(|t| t.to_string());
+    let part_name = layers[c.part].attributes.layer_name.as_ref().map(|t| t.to_string());
     let label = layer_label(part_name.as_deref(), &c.prefix, parts);
     if groups.len() > 1 {
         let others: Vec<String> = groups
             .iter()
             .filter(|(p, pf, _)| !(*p == c.part && *pf == c.prefix))
             .map(|(p, pf, _)| {
-                let n = layers[*p]
-                    .attributes
-                    .layer_name
-                    .as_ref()
-                    .map(|t| t.to_string());
+                let n = layers[*p].attributes.layer_name.as_ref().map(|t| t.to_string());
                 layer_label(n.as_deref(), pf, parts)
             })
             .take(8)
             .collect();
-        notices.push(format!(
-            "the EXR has {} layers; using {label} and ignoring {}",
-            groups.len(),
-            others.join("; ")
-        ));
+        notices.push(format!("the EXR has {} layers; using {label} and ignoring {}", groups.len(), others.join("; ")));
     } else if !c.prefix.is_empty() || part_name.is_some_and(|n| !n.is_empty()) {
         notices.push(format!("using EXR {label}"));
     }
     if let Some(name) = &c.grey_from {
-        notices.push(format!(
-            "the EXR has no R, G, B channels; reading channel '{name}' of {label} as grey"
-        ));
+        notices.push(format!("the EXR has no R, G, B channels; reading channel '{name}' of {label} as grey"));
     }
 
     let layer = &mut layers[c.part];
@@ -358,10 +316,7 @@ fn read_exr(file: File, notices: &mut Vec<String>) -> Result<EnvironmentMap, Str
             done.push(i);
             continue;
         }
-        let data = std::mem::replace(
-            &mut layer.channel_data.list[i].sample_data,
-            FlatSamples::F32(Vec::new()),
-        );
+        let data = std::mem::replace(&mut layer.channel_data.list[i].sample_data, FlatSamples::F32(Vec::new()));
         match data {
             FlatSamples::F16(v) => {
                 for (t, s) in texels.iter_mut().zip(v) {
@@ -383,11 +338,7 @@ fn read_exr(file: File, notices: &mut Vec<String>) -> Result<EnvironmentMap, Str
     }
     let data_pos = layer.attributes.layer_position;
     drop(layers);
-    let mut map = EnvironmentMap {
-        width: w as u32,
-        height: h as u32,
-        texels,
-    };
+    let mut map = EnvironmentMap { width: w as u32, height: h as u32, texels };
     if let Some(ch) = chromaticities.filter(|_| c.grey_from.is_none()) {
         convert_primaries(&mut map, &ch, notices);
     }
@@ -437,11 +388,7 @@ fn place_in_display_window(
         display.position.x(),
         display.position.y()
     ));
-    Ok(EnvironmentMap {
-        width: dw as u32,
-        height: dh as u32,
-        texels,
-    })
+    Ok(EnvironmentMap { width: dw as u32, height: dh as u32, texels })
 }
 
 /// Rec. 709 / sRGB primaries and D65 white, the colour space the baker works in.
@@ -449,34 +396,21 @@ const REC709: [[f64; 2]; 4] = [[0.64, 0.33], [0.30, 0.60], [0.15, 0.06], [0.3127
 
 /// RGB → XYZ matrix (columns: the primaries scaled so that RGB = 1 is the white point).
 fn rgb_to_xyz(p: &[[f64; 2]; 4]) -> Option<glam::DMat3> {
-    let xyz = |c: [f64; 2]| {
-        (c[1].abs() > 1e-9).then(|| glam::DVec3::new(c[0] / c[1], 1.0, (1.0 - c[0] - c[1]) / c[1]))
-    };
+    let xyz = |c: [f64; 2]| (c[1].abs() > 1e-9).then(|| glam::DVec3::new(c[0] / c[1], 1.0, (1.0 - c[0] - c[1]) / c[1]));
     let m = glam::DMat3::from_cols(xyz(p[0])?, xyz(p[1])?, xyz(p[2])?);
     if m.determinant().abs() < 1e-9 {
         return None;
     }
     let s = m.inverse() * xyz(p[3])?;
-    Some(glam::DMat3::from_cols(
-        m.x_axis * s.x,
-        m.y_axis * s.y,
-        m.z_axis * s.z,
-    ))
+    Some(glam::DMat3::from_cols(m.x_axis * s.x, m.y_axis * s.y, m.z_axis * s.z))
 }
 
 /// Converts RGB in the file's declared primaries to Rec. 709 (same white: no chromatic
 /// adaptation beyond what the two white points imply, i.e. XYZ is kept as is).
-fn convert_primaries(
-    map: &mut EnvironmentMap,
-    ch: &exr::meta::attribute::Chromaticities,
-    notices: &mut Vec<String>,
-) {
+fn convert_primaries(map: &mut EnvironmentMap, ch: &exr::meta::attribute::Chromaticities, notices: &mut Vec<String>) {
     let v = |c: exr::math::Vec2<f32>| [c.x() as f64, c.y() as f64];
     let file = [v(ch.red), v(ch.green), v(ch.blue), v(ch.white)];
-    let close = file
-        .iter()
-        .zip(&REC709)
-        .all(|(a, b)| (a[0] - b[0]).abs() < 2e-3 && (a[1] - b[1]).abs() < 2e-3);
+    let close = file.iter().zip(&REC709).all(|(a, b)| (a[0] - b[0]).abs() < 2e-3 && (a[1] - b[1]).abs() < 2e-3);
     if close {
         return;
     }
@@ -499,27 +433,17 @@ fn convert_primaries(
 // ---------------------------------------------------------------------------------------------
 // Radiance RGBE
 
-fn read_hdr(
-    file: File,
-    strict_signature: bool,
-    notices: &mut Vec<String>,
-) -> Result<EnvironmentMap, String> {
+fn read_hdr(file: File, strict_signature: bool, notices: &mut Vec<String>) -> Result<EnvironmentMap, String> {
     use image::ImageDecoder;
     use image::codecs::hdr::HdrDecoder;
     let reader = BufReader::new(file);
     // Files signed `#?RGBE` (or other `#?` variants) are read leniently; the signature line
     // then counts as a comment.
-    let decoder = if strict_signature {
-        HdrDecoder::new(reader)
-    } else {
-        HdrDecoder::new_nonstrict(reader)
-    }
-    .map_err(|e| format!("cannot decode Radiance HDR: {e}"))?;
+    let decoder = if strict_signature { HdrDecoder::new(reader) } else { HdrDecoder::new_nonstrict(reader) }
+        .map_err(|e| format!("cannot decode Radiance HDR: {e}"))?;
     let meta = decoder.metadata();
     let (w, h) = decoder.dimensions();
-    let n = (w as usize)
-        .checked_mul(h as usize)
-        .ok_or_else(|| format!("image too large ({w}×{h})"))?;
+    let n = (w as usize).checked_mul(h as usize).ok_or_else(|| format!("image too large ({w}×{h})"))?;
     let mut texels = vec![[0.0f32; 3]; n];
     decoder
         .read_image(bytemuck::cast_slice_mut(&mut texels))
@@ -540,17 +464,10 @@ fn read_hdr(
                 scale[0], scale[1], scale[2]
             ));
         } else {
-            notices.push(format!(
-                "ignored unusable Radiance EXPOSURE/COLORCORR factors ({:?})",
-                scale
-            ));
+            notices.push(format!("ignored unusable Radiance EXPOSURE/COLORCORR factors ({:?})", scale));
         }
     }
-    Ok(EnvironmentMap {
-        width: w,
-        height: h,
-        texels,
-    })
+    Ok(EnvironmentMap { width: w, height: h, texels })
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -596,11 +513,7 @@ fn sanitise(
             .map(|(n, k)| format!("{n} {k}"))
             .collect::<Vec<_>>()
             .join(", ");
-        let at = first
-            .iter()
-            .map(|(c, r)| format!("({c},{r})"))
-            .collect::<Vec<_>>()
-            .join(", ");
+        let at = first.iter().map(|(c, r)| format!("({c},{r})")).collect::<Vec<_>>().join(", ");
         let more = if nonfinite > first.len() { ", …" } else { "" };
         if !options.clamp_nonfinite {
             return Err(format!(

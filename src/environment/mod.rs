@@ -164,10 +164,7 @@ impl FromStr for LightMode {
 
     /// Parses `cube:N` (the prefix is case-insensitive) or a plain positive integer `K`.
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let err = |reason: &str| LightModeParseError {
-            input: s.to_string(),
-            reason: reason.to_string(),
-        };
+        let err = |reason: &str| LightModeParseError { input: s.to_string(), reason: reason.to_string() };
         let t = s.trim();
         let parse_int = |digits: &str, what: &str, max: u32| -> Result<u32, LightModeParseError> {
             if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
@@ -269,30 +266,19 @@ impl EnvironmentMap {
     /// # Panics
     /// If `width` or `height` is zero.
     pub fn from_fn(width: u32, height: u32, f: impl Fn([f32; 3]) -> [f32; 3]) -> Self {
-        assert!(
-            width > 0 && height > 0,
-            "an environment map needs at least one pixel"
-        );
+        assert!(width > 0 && height > 0, "an environment map needs at least one pixel");
         let mut texels = Vec::with_capacity(width as usize * height as usize);
         for row in 0..height {
             for col in 0..width {
                 texels.push(f(Self::direction_of(width, height, col, row)));
             }
         }
-        EnvironmentMap {
-            width,
-            height,
-            texels,
-        }
+        EnvironmentMap { width, height, texels }
     }
 
     /// A uniform map (8×4) of `radiance` everywhere; its integral is `4π · radiance`.
     pub fn constant(radiance: [f32; 3]) -> Self {
-        EnvironmentMap {
-            width: 8,
-            height: 4,
-            texels: vec![radiance; 32],
-        }
+        EnvironmentMap { width: 8, height: 4, texels: vec![radiance; 32] }
     }
 
     /// 64×32 map with `radiance` in the upper hemisphere (rows 0..16, y > 0) and black below;
@@ -303,11 +289,7 @@ impl EnvironmentMap {
         for t in &mut texels[..(w * h / 2) as usize] {
             *t = radiance;
         }
-        EnvironmentMap {
-            width: w,
-            height: h,
-            texels,
-        }
+        EnvironmentMap { width: w, height: h, texels }
     }
 
     /// A uniform sky of `sky_radiance` with a disc-shaped sun of radiance
@@ -422,20 +404,13 @@ impl EnvironmentMap {
 
     /// Largest texel channel value.
     pub fn peak(&self) -> f32 {
-        self.texels
-            .iter()
-            .flat_map(|t| t.iter().copied())
-            .fold(0.0f32, f32::max)
+        self.texels.iter().flat_map(|t| t.iter().copied()).fold(0.0f32, f32::max)
     }
 }
 
 pub(crate) fn normalize3(v: [f64; 3]) -> [f64; 3] {
     let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    if len > 0.0 && len.is_finite() {
-        v.map(|x| x / len)
-    } else {
-        [0.0, 1.0, 0.0]
-    }
+    if len > 0.0 && len.is_finite() { v.map(|x| x / len) } else { [0.0, 1.0, 0.0] }
 }
 
 #[cfg(test)]
@@ -448,21 +423,8 @@ mod tests {
             let m: LightMode = s.parse().unwrap();
             assert_eq!(m.to_string(), s);
         }
-        assert_eq!(
-            "CUBE:8".parse::<LightMode>().unwrap(),
-            LightMode::Cube { face_size: 8 }
-        );
-        for bad in [
-            "",
-            "cube:",
-            "cube:0",
-            "0",
-            "-3",
-            "1.5",
-            "abc",
-            "cube:x",
-            "cube:9999",
-        ] {
+        assert_eq!("CUBE:8".parse::<LightMode>().unwrap(), LightMode::Cube { face_size: 8 });
+        for bad in ["", "cube:", "cube:0", "0", "-3", "1.5", "abc", "cube:x", "cube:9999"] {
             assert!(bad.parse::<LightMode>().is_err(), "{bad:?} parsed");
         }
     }

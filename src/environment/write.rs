@@ -42,11 +42,7 @@ pub fn write_exr(
     );
     let encoding = Encoding {
         compression: Compression::ZIP16,
-        blocks: if tiled {
-            Blocks::Tiles(Vec2(64, 64))
-        } else {
-            Blocks::ScanLines
-        },
+        blocks: if tiled { Blocks::Tiles(Vec2(64, 64)) } else { Blocks::ScanLines },
         line_order: LineOrder::Increasing,
     };
     let texels = &map.texels;
@@ -60,13 +56,7 @@ pub fn write_exr(
             Image::from_layer(layer).write().to_file(path)
         }
         ExrPrecision::Half => {
-            let half = |v: f32| {
-                f16::from_f32(if v.is_finite() {
-                    v.clamp(-65504.0, 65504.0)
-                } else {
-                    v
-                })
-            };
+            let half = |v: f32| f16::from_f32(if v.is_finite() { v.clamp(-65504.0, 65504.0) } else { v });
             let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
                 let t = texels[p.y() * w + p.x()];
                 (half(t[0]), half(t[1]), half(t[2]))
@@ -110,11 +100,7 @@ pub fn write_hdr(map: &EnvironmentMap, path: impl AsRef<Path>) -> anyhow::Result
             .iter()
             .map(|t| {
                 let t = t.map(|v| if v > 0.0 { v.min(MAX_RGBE) } else { 0.0 });
-                if t[0].max(t[1]).max(t[2]) < MIN_RGBE {
-                    [0.0; 3]
-                } else {
-                    t
-                }
+                if t[0].max(t[1]).max(t[2]) < MIN_RGBE { [0.0; 3] } else { t }
             })
             .collect()
     });

@@ -36,11 +36,7 @@ impl Document {
         for (i, data) in source.buffers.iter().enumerate() {
             align(&mut bin, 8);
             starts.push(bin.len());
-            let declared = source
-                .document
-                .buffers()
-                .nth(i)
-                .map_or(data.len(), |b| b.length());
+            let declared = source.document.buffers().nth(i).map_or(data.len(), |b| b.length());
             bin.extend_from_slice(&data[..declared.min(data.len())]);
         }
         if let Some(views) = json.get_mut("bufferViews").and_then(Value::as_array_mut) {
@@ -86,8 +82,7 @@ impl Document {
     /// Appends `bytes` as a new buffer view (4-byte aligned) and returns its index.
     pub fn push_view(&mut self, bytes: &[u8], target: Option<u32>) -> usize {
         align(&mut self.bin, 4);
-        let mut view =
-            json!({ "buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len() });
+        let mut view = json!({ "buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len() });
         if let Some(target) = target {
             view["target"] = json!(target);
         }
@@ -102,19 +97,13 @@ impl Document {
     /// Adds a PNG image with a linear, clamped sampler; returns the texture index.
     pub fn push_png_texture(&mut self, name: &str, png: &[u8]) -> usize {
         let view = self.push_view(png, None);
-        let image = self.push(
-            "images",
-            json!({ "name": name, "bufferView": view, "mimeType": "image/png" }),
-        );
+        let image = self.push("images", json!({ "name": name, "bufferView": view, "mimeType": "image/png" }));
         // No mipmaps: minification between charts would bleed across them.
         let sampler = self.push(
             "samplers",
             json!({ "magFilter": LINEAR, "minFilter": LINEAR, "wrapS": CLAMP_TO_EDGE, "wrapT": CLAMP_TO_EDGE }),
         );
-        self.push(
-            "textures",
-            json!({ "name": name, "source": image, "sampler": sampler }),
-        )
+        self.push("textures", json!({ "name": name, "source": image, "sampler": sampler }))
     }
 
     pub fn use_extension(&mut self, name: &str) {
@@ -179,16 +168,9 @@ fn bounds(accessor: &gltf::Accessor, packed: &[u8]) -> (Vec<Value>, Vec<Value>) 
         }
     }
     let number = |v: f64| {
-        if accessor.data_type() == DataType::F32 {
-            json!(v as f32)
-        } else {
-            json!(v as i64)
-        }
+        if accessor.data_type() == DataType::F32 { json!(v as f32) } else { json!(v as i64) }
     };
-    (
-        lo.into_iter().map(number).collect(),
-        hi.into_iter().map(number).collect(),
-    )
+    (lo.into_iter().map(number).collect(), hi.into_iter().map(number).collect())
 }
 
 /// Rewrites every baked primitive: attributes gathered through the unwrap's
@@ -216,11 +198,7 @@ pub fn rewrite_primitives(
             }
             Some(_) => {
                 let mut copy = document.json["meshes"][primitive.mesh].clone();
-                let name = copy
-                    .get("name")
-                    .and_then(Value::as_str)
-                    .unwrap_or("mesh")
-                    .to_string();
+                let name = copy.get("name").and_then(Value::as_str).unwrap_or("mesh").to_string();
                 copy["name"] = json!(format!("{name} (node {})", primitive.node));
                 let index = document.push("meshes", copy);
                 document.json["nodes"][primitive.node]["mesh"] = json!(index);
@@ -238,27 +216,18 @@ pub fn rewrite_primitives(
             .meshes()
             .nth(primitive.mesh)
             .and_then(|m| m.primitives().nth(primitive.primitive))
-            .ok_or_else(|| {
-                anyhow!(
-                    "mesh {} primitive {} vanished",
-                    primitive.mesh,
-                    primitive.primitive
-                )
-            })?;
+            .ok_or_else(|| anyhow!("mesh {} primitive {} vanished", primitive.mesh, primitive.primitive))?;
         let what = format!("mesh {} primitive {}", primitive.mesh, primitive.primitive);
         let mut attributes = serde_json::Map::new();
         for (semantic, source_accessor) in gltf_primitive.attributes() {
             let name = semantic.to_string();
             if name == "TEXCOORD_1" {
-                notices.push(format!(
-                    "{what}: its TEXCOORD_1 is replaced by the lightmap UVs"
-                ));
+                notices.push(format!("{what}: its TEXCOORD_1 is replaced by the lightmap UVs"));
                 continue;
             }
             let needs_bounds = semantic == gltf::Semantic::Positions;
-            let index =
-                gather_attribute(document, source, &source_accessor, unwrapped, needs_bounds)
-                    .with_context(|| format!("{what}, attribute {name}"))?;
+            let index = gather_attribute(document, source, &source_accessor, unwrapped, needs_bounds)
+                .with_context(|| format!("{what}, attribute {name}"))?;
             attributes.insert(name, json!(index));
         }
         let uv: Vec<[f32; 2]> = unwrapped.vertices.iter().map(|v| v.uv).collect();
@@ -276,10 +245,7 @@ pub fn rewrite_primitives(
                 "bufferView": view, "componentType": UNSIGNED_SHORT, "count": short.len(), "type": "SCALAR",
             }))
         } else {
-            let view = document.push_view(
-                bytemuck::cast_slice(&unwrapped.indices),
-                Some(ELEMENT_ARRAY_BUFFER),
-            );
+            let view = document.push_view(bytemuck::cast_slice(&unwrapped.indices), Some(ELEMENT_ARRAY_BUFFER));
             document.push_accessor(json!({
                 "bufferView": view, "componentType": UNSIGNED_INT, "count": unwrapped.indices.len(), "type": "SCALAR",
             }))
@@ -310,9 +276,7 @@ fn gather_attribute(
     let mut gathered = Vec::with_capacity(unwrapped.vertices.len() * size);
     for v in &unwrapped.vertices {
         let at = v.xref as usize * size;
-        let element = packed
-            .get(at..at + size)
-            .ok_or_else(|| anyhow!("vertex {} is out of range", v.xref))?;
+        let element = packed.get(at..at + size).ok_or_else(|| anyhow!("vertex {} is out of range", v.xref))?;
         gathered.extend_from_slice(element);
     }
     // Vertex attributes need 4-byte aligned strides; pad elements that are not.
@@ -322,11 +286,7 @@ fn gather_attribute(
     } else {
         gathered
             .chunks_exact(size)
-            .flat_map(|e| {
-                e.iter()
-                    .copied()
-                    .chain(std::iter::repeat_n(0, stride - size))
-            })
+            .flat_map(|e| e.iter().copied().chain(std::iter::repeat_n(0, stride - size)))
             .collect()
     };
     let view = document.push_view(&bytes, Some(ARRAY_BUFFER));
@@ -350,10 +310,7 @@ fn gather_attribute(
         let packed_out: Vec<u8> = if stride == size {
             bytes.clone()
         } else {
-            bytes
-                .chunks_exact(stride)
-                .flat_map(|e| e[..size].to_vec())
-                .collect()
+            bytes.chunks_exact(stride).flat_map(|e| e[..size].to_vec()).collect()
         };
         let (lo, hi) = bounds(source_accessor, &packed_out);
         out["min"] = json!(lo);

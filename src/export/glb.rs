@@ -30,10 +30,7 @@ mod tests {
     fn chunks_are_aligned_and_length_is_total() {
         let glb = super::encode(b"{}", &[1, 2, 3]);
         assert_eq!(glb.len() % 4, 0);
-        assert_eq!(
-            u32::from_le_bytes(glb[8..12].try_into().unwrap()) as usize,
-            glb.len()
-        );
+        assert_eq!(u32::from_le_bytes(glb[8..12].try_into().unwrap()) as usize, glb.len());
         let parsed = gltf::binary::Glb::from_slice(&glb).unwrap();
         assert_eq!(parsed.json.trim_ascii(), b"{}");
         assert_eq!(&parsed.bin.unwrap()[..3], &[1, 2, 3]);

@@ -19,12 +19,7 @@ pub struct Image {
 impl Image {
     fn blank(width: u32, height: u32) -> Image {
         let n = (width * height) as usize;
-        Image {
-            width,
-            height,
-            pixels: vec![[0.0; 3]; n],
-            written: vec![false; n],
-        }
+        Image { width, height, pixels: vec![[0.0; 3]; n], written: vec![false; n] }
     }
 
     /// Places `value(texel index)` at every covered texel.
@@ -53,16 +48,7 @@ impl Image {
                     }
                     let mut sum = [0.0f32; 3];
                     let mut count = 0;
-                    for (dx, dy) in [
-                        (-1, -1),
-                        (0, -1),
-                        (1, -1),
-                        (-1, 0),
-                        (1, 0),
-                        (-1, 1),
-                        (0, 1),
-                        (1, 1),
-                    ] {
+                    for (dx, dy) in [(-1, -1), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1)] {
                         let (nx, ny) = (x + dx, y + dy);
                         if nx < 0 || ny < 0 || nx >= w || ny >= h {
                             continue;
@@ -109,11 +95,7 @@ impl Image {
         layer.encoding.line_order = LineOrder::Increasing;
         let image = exr::image::Image::from_layer(layer);
         let mut bytes = std::io::Cursor::new(Vec::new());
-        image
-            .write()
-            .non_parallel()
-            .to_buffered(&mut bytes)
-            .context("encoding the EXR lightmap")?;
+        image.write().non_parallel().to_buffered(&mut bytes).context("encoding the EXR lightmap")?;
         Ok(bytes.into_inner())
     }
 
@@ -127,30 +109,16 @@ impl Image {
         }
         let mut bytes = Vec::new();
         let encoder = image::codecs::png::PngEncoder::new(&mut bytes);
-        image::ImageEncoder::write_image(
-            encoder,
-            &rgb,
-            self.width,
-            self.height,
-            image::ExtendedColorType::Rgb8,
-        )
-        .context("encoding the PNG lightmap")?;
+        image::ImageEncoder::write_image(encoder, &rgb, self.width, self.height, image::ExtendedColorType::Rgb8)
+            .context("encoding the PNG lightmap")?;
         Ok(bytes)
     }
 }
 
 /// Linear [0, 1] to an 8-bit sRGB code (IEC 61966-2-1), rounding to nearest.
 pub fn linear_to_srgb8(linear: f32) -> u8 {
-    let v = if linear.is_nan() {
-        0.0
-    } else {
-        linear.clamp(0.0, 1.0)
-    };
-    let s = if v <= 0.003_130_8 {
-        12.92 * v
-    } else {
-        1.055 * v.powf(1.0 / 2.4) - 0.055
-    };
+    let v = if linear.is_nan() { 0.0 } else { linear.clamp(0.0, 1.0) };
+    let s = if v <= 0.003_130_8 { 12.92 * v } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 };
     (s * 255.0 + 0.5) as u8
 }
 

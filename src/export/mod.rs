@@ -35,10 +35,7 @@ pub struct ExportOptions {
 
 impl Default for ExportOptions {
     fn default() -> Self {
-        ExportOptions {
-            exposure: 0.0,
-            dilation: 4,
-        }
+        ExportOptions { exposure: 0.0, dilation: 4 }
     }
 }
 
@@ -73,17 +70,10 @@ pub fn run(
     let mut baked_materials: HashMap<Option<usize>, usize> = HashMap::new();
     let mut material_for = |doc: &mut Document, original: Option<usize>| -> usize {
         *baked_materials.entry(original).or_insert_with(|| {
-            let source = original
-                .map(|m| doc.json["materials"][m].clone())
-                .unwrap_or(Value::Null);
-            let name = source
-                .get("name")
-                .and_then(Value::as_str)
-                .unwrap_or("default");
-            let alpha = source
-                .pointer("/pbrMetallicRoughness/baseColorFactor/3")
-                .and_then(Value::as_f64)
-                .unwrap_or(1.0);
+            let source = original.map(|m| doc.json["materials"][m].clone()).unwrap_or(Value::Null);
+            let name = source.get("name").and_then(Value::as_str).unwrap_or("default");
+            let alpha =
+                source.pointer("/pbrMetallicRoughness/baseColorFactor/3").and_then(Value::as_f64).unwrap_or(1.0);
             let mut material = json!({
                 "name": format!("{name} (baked)"),
                 "pbrMetallicRoughness": {

@@ -73,12 +73,7 @@ impl Gpu {
                 adapters
                     .into_iter()
                     .find(|a| a.get_info().name.to_lowercase().contains(&needle))
-                    .with_context(|| {
-                        format!(
-                            "no adapter matches --adapter '{wanted}'; found: {}",
-                            names.join(", ")
-                        )
-                    })?
+                    .with_context(|| format!("no adapter matches --adapter '{wanted}'; found: {}", names.join(", ")))?
             }
             None => adapters
                 .into_iter()
@@ -124,18 +119,10 @@ impl Gpu {
         let sink = errors.clone();
         device.set_device_lost_callback(move |reason, message| {
             if reason != wgpu::DeviceLostReason::Destroyed {
-                sink.lock()
-                    .unwrap()
-                    .push(format!("GPU device lost ({reason:?}): {message}"));
+                sink.lock().unwrap().push(format!("GPU device lost ({reason:?}): {message}"));
             }
         });
-        Ok(Gpu {
-            device,
-            queue,
-            adapter: description,
-            limits,
-            errors,
-        })
+        Ok(Gpu { device, queue, adapter: description, limits, errors })
     }
 
     /// Waits for submitted work and turns any GPU error raised so far into an
@@ -149,11 +136,7 @@ impl Gpu {
                 "{stage}: GPU error on {}: {}{}",
                 self.adapter.name,
                 one_line(first),
-                if errors.len() > 1 {
-                    format!(" (and {} more)", errors.len() - 1)
-                } else {
-                    String::new()
-                }
+                if errors.len() > 1 { format!(" (and {} more)", errors.len() - 1) } else { String::new() }
             ),
         }
     }
@@ -168,11 +151,10 @@ impl Gpu {
 
     /// Builds the named shader (with `common.wgsl` prepended).
     pub fn shader(&self, shader: Shader) -> wgpu::ShaderModule {
-        self.device
-            .create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some(shader.stem()),
-                source: wgpu::ShaderSource::Wgsl(shader.source().into()),
-            })
+        self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(shader.stem()),
+            source: wgpu::ShaderSource::Wgsl(shader.source().into()),
+        })
     }
 
     /// A compute pipeline for `entry` of `shader`, labelled with the shader's stem.
@@ -183,34 +165,25 @@ impl Gpu {
         layouts: &[&wgpu::BindGroupLayout],
     ) -> wgpu::ComputePipeline {
         let module = self.shader(shader);
-        let layouts: Vec<Option<&wgpu::BindGroupLayout>> =
-            layouts.iter().map(|l| Some(*l)).collect();
-        let layout = self
-            .device
-            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some(shader.stem()),
-                bind_group_layouts: &layouts,
-                immediate_size: 0,
-            });
-        self.device
-            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(shader.stem()),
-                layout: Some(&layout),
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
+        let layouts: Vec<Option<&wgpu::BindGroupLayout>> = layouts.iter().map(|l| Some(*l)).collect();
+        let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(shader.stem()),
+            bind_group_layouts: &layouts,
+            immediate_size: 0,
+        });
+        self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(shader.stem()),
+            layout: Some(&layout),
+            module: &module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            cache: None,
+        })
     }
 
     /// A storage buffer initialised with `data` (at least 4 bytes, so empty
     /// inputs still bind).
-    pub fn storage_buffer<T: bytemuck::Pod>(
-        &self,
-        label: &str,
-        data: &[T],
-        extra: wgpu::BufferUsages,
-    ) -> wgpu::Buffer {
+    pub fn storage_buffer<T: bytemuck::Pod>(&self, label: &str, data: &[T], extra: wgpu::BufferUsages) -> wgpu::Buffer {
         use wgpu::util::DeviceExt;
         let bytes: &[u8] = bytemuck::cast_slice(data);
         let padded;
@@ -220,23 +193,21 @@ impl Gpu {
         } else {
             bytes
         };
-        self.device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents,
-                usage: wgpu::BufferUsages::STORAGE | extra,
-            })
+        self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents,
+            usage: wgpu::BufferUsages::STORAGE | extra,
+        })
     }
 
     /// A uniform buffer holding one `T`.
     pub fn uniform_buffer<T: bytemuck::Pod>(&self, label: &str, value: &T) -> wgpu::Buffer {
         use wgpu::util::DeviceExt;
-        self.device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: bytemuck::bytes_of(value),
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            })
+        self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: bytemuck::bytes_of(value),
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        })
     }
 
     /// Workgroup counts for `items` invocations of `size`, spread over x and y
@@ -244,23 +215,13 @@ impl Gpu {
     pub fn dispatch_size(&self, items: u32, size: u32) -> (u32, u32) {
         let groups = items.div_ceil(size).max(1);
         let max = self.limits.max_compute_workgroups_per_dimension.max(1);
-        if groups <= max {
-            (groups, 1)
-        } else {
-            (max, groups.div_ceil(max))
-        }
+        if groups <= max { (groups, 1) } else { (max, groups.div_ceil(max)) }
     }
 }
 
 /// wgpu's messages span several indented lines; a CLI error is one line.
 fn one_line(message: &str) -> String {
-    message
-        .lines()
-        .map(str::trim)
-        .filter(|l| !l.is_empty())
-        .collect::<Vec<_>>()
-        .join(": ")
-        .replace(":: ", ": ")
+    message.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join(": ").replace(":: ", ": ")
 }
 
 fn preference_rank(kind: wgpu::DeviceType) -> u8 {
@@ -274,11 +235,7 @@ fn preference_rank(kind: wgpu::DeviceType) -> u8 {
 }
 
 /// A bind-group-layout entry for a storage buffer visible to `stages`.
-pub fn storage_entry(
-    binding: u32,
-    read_only: bool,
-    stages: wgpu::ShaderStages,
-) -> wgpu::BindGroupLayoutEntry {
+pub fn storage_entry(binding: u32, read_only: bool, stages: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: stages,
@@ -315,14 +272,7 @@ pub fn bind_buffers(
     let entries: Vec<wgpu::BindGroupEntry> = buffers
         .iter()
         .enumerate()
-        .map(|(i, b)| wgpu::BindGroupEntry {
-            binding: i as u32,
-            resource: b.as_entire_binding(),
-        })
+        .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
         .collect();
-    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some(label),
-        layout,
-        entries: &entries,
-    })
+    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout, entries: &entries })
 }

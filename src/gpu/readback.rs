@@ -5,11 +5,7 @@ use anyhow::{Result, anyhow};
 use super::Gpu;
 
 /// Reads the first `count` elements of `buffer` (which needs COPY_SRC).
-pub fn read_buffer<T: bytemuck::Pod>(
-    gpu: &Gpu,
-    buffer: &wgpu::Buffer,
-    count: usize,
-) -> Result<Vec<T>> {
+pub fn read_buffer<T: bytemuck::Pod>(gpu: &Gpu, buffer: &wgpu::Buffer, count: usize) -> Result<Vec<T>> {
     let size = (count * std::mem::size_of::<T>()) as u64;
     if size == 0 {
         return Ok(Vec::new());
@@ -25,20 +21,15 @@ pub fn read_buffer<T: bytemuck::Pod>(
     gpu.queue.submit([encoder.finish()]);
 
     let (sender, receiver) = std::sync::mpsc::channel();
-    staging
-        .slice(..)
-        .map_async(wgpu::MapMode::Read, move |result| {
-            let _ = sender.send(result);
-        });
+    staging.slice(..).map_async(wgpu::MapMode::Read, move |result| {
+        let _ = sender.send(result);
+    });
     gpu.wait()?;
     receiver
         .recv()
         .map_err(|_| anyhow!("GPU read-back was abandoned"))?
         .map_err(|e| anyhow!("GPU read-back failed: {e}"))?;
-    let data = staging
-        .slice(..)
-        .get_mapped_range()
-        .map_err(|e| anyhow!("GPU read-back failed: {e:?}"))?;
+    let data = staging.slice(..).get_mapped_range().map_err(|e| anyhow!("GPU read-back failed: {e:?}"))?;
     let values = bytemuck::cast_slice::<u8, T>(&data).to_vec();
     drop(data);
     staging.unmap();

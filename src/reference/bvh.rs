@@ -30,11 +30,7 @@ impl Triangle {
     /// normal, flipped to agree with the interpolated shading normal where
     /// that is usable (non-zero and not perpendicular to the face).
     pub(crate) fn front_normal(&self, u: f64, v: f64) -> DVec3 {
-        front_normal(
-            self.face,
-            self.normals
-                .map(|n| n[0] * (1.0 - u - v) + n[1] * u + n[2] * v),
-        )
+        front_normal(self.face, self.normals.map(|n| n[0] * (1.0 - u - v) + n[1] * u + n[2] * v))
     }
 
     /// The point at barycentrics (u, v).
@@ -113,29 +109,16 @@ impl Bvh {
             .enumerate()
             .map(|(i, t)| {
                 let (lo, hi) = t.bounds();
-                Item {
-                    lo,
-                    hi,
-                    centroid: (lo + hi) * 0.5,
-                    index: i as u32,
-                }
+                Item { lo, hi, centroid: (lo + hi) * 0.5, index: i as u32 }
             })
             .collect();
         let mut nodes = Vec::with_capacity(2 * items.len().max(1));
-        nodes.push(Node {
-            lo: DVec3::ZERO,
-            hi: DVec3::ZERO,
-            start: 0,
-            count: 0,
-        });
+        nodes.push(Node { lo: DVec3::ZERO, hi: DVec3::ZERO, start: 0, count: 0 });
         if !items.is_empty() {
             build(&mut nodes, 0, &mut items, 0);
         }
         let mut slots: Vec<Option<Triangle>> = triangles.into_iter().map(Some).collect();
-        let triangles = items
-            .iter()
-            .map(|it| slots[it.index as usize].take().expect("each triangle once"))
-            .collect();
+        let triangles = items.iter().map(|it| slots[it.index as usize].take().expect("each triangle once")).collect();
         Bvh { triangles, nodes }
     }
 
@@ -151,23 +134,14 @@ impl Bvh {
 
     fn inverse(direction: DVec3) -> DVec3 {
         let inv = |d: f64| {
-            if d.abs() > 1e-300 {
-                1.0 / d
-            } else {
-                1e300f64.copysign(d)
-            }
+            if d.abs() > 1e-300 { 1.0 / d } else { 1e300f64.copysign(d) }
         };
         DVec3::new(inv(direction.x), inv(direction.y), inv(direction.z))
     }
 
     /// Möller–Trumbore: the hit (t, u, v) of the ray with triangle `t` for
     /// 0 < t < `t_max`.
-    fn triangle_hit(
-        tri: &Triangle,
-        origin: DVec3,
-        direction: DVec3,
-        t_max: f64,
-    ) -> Option<(f64, f64, f64)> {
+    fn triangle_hit(tri: &Triangle, origin: DVec3, direction: DVec3, t_max: f64) -> Option<(f64, f64, f64)> {
         let p = direction.cross(tri.e2);
         let det = tri.e1.dot(p);
         // |det| = |e1 × e2| · |cos|: reject rays (nearly) in the plane.
@@ -191,36 +165,16 @@ impl Bvh {
 
     /// The closest hit of the ray `origin + t·direction`, 0 < t < `t_max`,
     /// ignoring triangle `skip` (the one the ray leaves from), from either side.
-    pub(crate) fn closest(
-        &self,
-        origin: DVec3,
-        direction: DVec3,
-        t_max: f64,
-        skip: Option<u32>,
-    ) -> Option<Hit> {
+    pub(crate) fn closest(&self, origin: DVec3, direction: DVec3, t_max: f64, skip: Option<u32>) -> Option<Hit> {
         self.traverse(origin, direction, t_max, skip, false)
     }
 
     /// Whether anything lies on the ray within 0 < t < `t_max` (except `skip`).
-    pub(crate) fn occluded(
-        &self,
-        origin: DVec3,
-        direction: DVec3,
-        t_max: f64,
-        skip: Option<u32>,
-    ) -> bool {
-        self.traverse(origin, direction, t_max, skip, true)
-            .is_some()
+    pub(crate) fn occluded(&self, origin: DVec3, direction: DVec3, t_max: f64, skip: Option<u32>) -> bool {
+        self.traverse(origin, direction, t_max, skip, true).is_some()
     }
 
-    fn traverse(
-        &self,
-        origin: DVec3,
-        direction: DVec3,
-        t_max: f64,
-        skip: Option<u32>,
-        any: bool,
-    ) -> Option<Hit> {
+    fn traverse(&self, origin: DVec3, direction: DVec3, t_max: f64, skip: Option<u32>, any: bool) -> Option<Hit> {
         if self.triangles.is_empty() {
             return None;
         }
@@ -238,16 +192,9 @@ impl Bvh {
                     if Some(i) == skip {
                         continue;
                     }
-                    if let Some((t, u, v)) =
-                        Self::triangle_hit(&self.triangles[i as usize], origin, direction, t_max)
-                    {
+                    if let Some((t, u, v)) = Self::triangle_hit(&self.triangles[i as usize], origin, direction, t_max) {
                         t_max = t;
-                        best = Some(Hit {
-                            t,
-                            triangle: i,
-                            u,
-                            v,
-                        });
+                        best = Some(Hit { t, triangle: i, u, v });
                         if any {
                             return best;
                         }
@@ -266,9 +213,7 @@ impl Bvh {
                         } else {
                             // Deeper than any SAH tree over 2^32 triangles gets;
                             // kept correct anyway by visiting `far` first now.
-                            if let Some(h) =
-                                self.traverse_from(far, origin, direction, inv, t_max, skip, any)
-                            {
+                            if let Some(h) = self.traverse_from(far, origin, direction, inv, t_max, skip, any) {
                                 t_max = h.t;
                                 best = Some(h);
                                 if any {
@@ -326,16 +271,9 @@ impl Bvh {
                 if Some(i) == skip {
                     continue;
                 }
-                if let Some((t, u, v)) =
-                    Self::triangle_hit(&self.triangles[i as usize], origin, direction, t_max)
-                {
+                if let Some((t, u, v)) = Self::triangle_hit(&self.triangles[i as usize], origin, direction, t_max) {
                     t_max = t;
-                    best = Some(Hit {
-                        t,
-                        triangle: i,
-                        u,
-                        v,
-                    });
+                    best = Some(Hit { t, triangle: i, u, v });
                     if any {
                         return best;
                     }
@@ -366,12 +304,7 @@ fn build(nodes: &mut Vec<Node>, index: usize, items: &mut [Item], offset: usize)
         clo = clo.min(it.centroid);
         chi = chi.max(it.centroid);
     }
-    nodes[index] = Node {
-        lo,
-        hi,
-        start: offset as u32,
-        count: items.len() as u32,
-    };
+    nodes[index] = Node { lo, hi, start: offset as u32, count: items.len() as u32 };
     if items.len() <= MAX_LEAF {
         return;
     }
@@ -395,11 +328,7 @@ fn build(nodes: &mut Vec<Node>, index: usize, items: &mut [Item], offset: usize)
         // Sweep from the right, then from the left.
         let mut right_area = [0.0; BINS];
         let mut right_count = [0usize; BINS];
-        let (mut rlo, mut rhi, mut rc) = (
-            DVec3::splat(f64::INFINITY),
-            DVec3::splat(f64::NEG_INFINITY),
-            0,
-        );
+        let (mut rlo, mut rhi, mut rc) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY), 0);
         for b in (1..BINS).rev() {
             rlo = rlo.min(blo[b]);
             rhi = rhi.max(bhi[b]);
@@ -407,11 +336,7 @@ fn build(nodes: &mut Vec<Node>, index: usize, items: &mut [Item], offset: usize)
             right_area[b] = area(rlo, rhi);
             right_count[b] = rc;
         }
-        let (mut llo, mut lhi, mut lc) = (
-            DVec3::splat(f64::INFINITY),
-            DVec3::splat(f64::NEG_INFINITY),
-            0,
-        );
+        let (mut llo, mut lhi, mut lc) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY), 0);
         for b in 0..BINS - 1 {
             llo = llo.min(blo[b]);
             lhi = lhi.max(bhi[b]);
@@ -442,20 +367,10 @@ fn build(nodes: &mut Vec<Node>, index: usize, items: &mut [Item], offset: usize)
         }
     };
     let left = nodes.len();
-    let dummy = Node {
-        lo: DVec3::ZERO,
-        hi: DVec3::ZERO,
-        start: 0,
-        count: 0,
-    };
+    let dummy = Node { lo: DVec3::ZERO, hi: DVec3::ZERO, start: 0, count: 0 };
     nodes.push(dummy);
     nodes.push(dummy);
-    nodes[index] = Node {
-        lo,
-        hi,
-        start: left as u32,
-        count: 0,
-    };
+    nodes[index] = Node { lo, hi, start: left as u32, count: 0 };
     let (a, b) = items.split_at_mut(mid);
     build(nodes, left, a, offset);
     build(nodes, left + 1, b, offset + mid);
@@ -482,13 +397,7 @@ mod tests {
         (0..n)
             .map(|_| {
                 let c = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 10.0;
-                let r = |rng: &mut Rng| {
-                    DVec3::new(
-                        rng.next_f64() - 0.5,
-                        rng.next_f64() - 0.5,
-                        rng.next_f64() - 0.5,
-                    )
-                };
+                let r = |rng: &mut Rng| DVec3::new(rng.next_f64() - 0.5, rng.next_f64() - 0.5, rng.next_f64() - 0.5);
                 let (a, b, d) = (c + r(rng), c + r(rng), c + r(rng));
                 Triangle {
                     v0: a,
@@ -509,19 +418,12 @@ mod tests {
         let bvh = Bvh::new(triangles.clone());
         for _ in 0..500 {
             let o = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 12.0 - 1.0;
-            let d = DVec3::new(
-                rng.next_f64() - 0.5,
-                rng.next_f64() - 0.5,
-                rng.next_f64() - 0.5,
-            )
-            .normalize();
+            let d = DVec3::new(rng.next_f64() - 0.5, rng.next_f64() - 0.5, rng.next_f64() - 0.5).normalize();
             let brute = triangles
                 .iter()
                 .filter_map(|t| Bvh::triangle_hit(t, o, d, f64::INFINITY).map(|h| h.0))
                 .fold(f64::INFINITY, f64::min);
-            let hit = bvh
-                .closest(o, d, f64::INFINITY, None)
-                .map_or(f64::INFINITY, |h| h.t);
+            let hit = bvh.closest(o, d, f64::INFINITY, None).map_or(f64::INFINITY, |h| h.t);
             assert_eq!(hit, brute);
             assert_eq!(bvh.occluded(o, d, f64::INFINITY, None), brute.is_finite());
         }

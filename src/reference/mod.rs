@@ -114,13 +114,7 @@ pub struct ReferenceOptions {
 impl Default for ReferenceOptions {
     /// 1024 samples, at most 64 bounces, seed 0, no rotation, intensity 1.
     fn default() -> Self {
-        ReferenceOptions {
-            samples: 1024,
-            max_bounces: 64,
-            seed: 0,
-            env_rotation_degrees: 0.0,
-            env_intensity: 1.0,
-        }
+        ReferenceOptions { samples: 1024, max_bounces: 64, seed: 0, env_rotation_degrees: 0.0, env_intensity: 1.0 }
     }
 }
 
@@ -172,18 +166,10 @@ struct SurfaceMaterial {
 impl SurfaceMaterial {
     fn new(m: &crate::scene::Material) -> SurfaceMaterial {
         let clean = |v: f32, hi: f64| {
-            if v.is_finite() {
-                (v as f64).clamp(0.0, hi)
-            } else {
-                0.0
-            }
+            if v.is_finite() { (v as f64).clamp(0.0, hi) } else { 0.0 }
         };
         SurfaceMaterial {
-            albedo: DVec3::new(
-                clean(m.base_color[0], 1.0),
-                clean(m.base_color[1], 1.0),
-                clean(m.base_color[2], 1.0),
-            ),
+            albedo: DVec3::new(clean(m.base_color[0], 1.0), clean(m.base_color[1], 1.0), clean(m.base_color[2], 1.0)),
             emission: DVec3::new(
                 clean(m.emission[0], f64::MAX),
                 clean(m.emission[1], f64::MAX),
@@ -217,10 +203,7 @@ fn scene_triangles(scene: &Scene) -> Vec<(usize, usize, Triangle)> {
     let default_material = scene.materials.len() as u32;
     let mut out = Vec::with_capacity(scene.triangle_count());
     for (pi, p) in scene.primitives.iter().enumerate() {
-        let material = p
-            .material
-            .filter(|&m| m < scene.materials.len())
-            .map_or(default_material, |m| m as u32);
+        let material = p.material.filter(|&m| m < scene.materials.len()).map_or(default_material, |m| m as u32);
         let normals = p.normals.as_ref().filter(|n| n.len() == p.positions.len());
         let vec = |v: [f32; 3]| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64);
         for t in 0..p.triangle_count() {
@@ -235,29 +218,14 @@ fn scene_triangles(scene: &Scene) -> Vec<(usize, usize, Triangle)> {
             if !(len > 0.0 && len.is_finite() && a.is_finite()) {
                 continue;
             }
-            let face = if p.mirrored {
-                -cross / len
-            } else {
-                cross / len
-            };
+            let face = if p.mirrored { -cross / len } else { cross / len };
             let normals = normals.map(|n| {
                 idx.map(|i| {
                     let v = vec(n[i]);
                     if v.is_finite() { v } else { DVec3::ZERO }
                 })
             });
-            out.push((
-                pi,
-                t,
-                Triangle {
-                    v0: a,
-                    e1,
-                    e2,
-                    face,
-                    normals,
-                    material,
-                },
-            ));
+            out.push((pi, t, Triangle { v0: a, e1, e2, face, normals, material }));
         }
     }
     out
@@ -270,37 +238,19 @@ impl Reference {
     ///
     /// # Panics
     /// If the environment's texel count is not width × height.
-    pub fn new(
-        scene: &Scene,
-        environment: Option<&EnvironmentMap>,
-        options: &ReferenceOptions,
-    ) -> Reference {
-        let mut materials: Vec<SurfaceMaterial> =
-            scene.materials.iter().map(SurfaceMaterial::new).collect();
+    pub fn new(scene: &Scene, environment: Option<&EnvironmentMap>, options: &ReferenceOptions) -> Reference {
+        let mut materials: Vec<SurfaceMaterial> = scene.materials.iter().map(SurfaceMaterial::new).collect();
         materials.push(SurfaceMaterial::new(&crate::scene::Material::default()));
-        let triangles: Vec<Triangle> = scene_triangles(scene)
-            .into_iter()
-            .map(|(_, _, t)| t)
-            .collect();
+        let triangles: Vec<Triangle> = scene_triangles(scene).into_iter().map(|(_, _, t)| t).collect();
         let scale = triangles
             .iter()
             .flat_map(|t| [t.v0, t.v0 + t.e1, t.v0 + t.e2])
             .map(|v| v.abs().max_element())
             .fold(0.0f64, f64::max);
-        let scale = if scale > 0.0 && scale.is_finite() {
-            scale
-        } else {
-            1.0
-        };
+        let scale = if scale > 0.0 && scale.is_finite() { scale } else { 1.0 };
         let env = environment
             .filter(|m| m.width > 0 && m.height > 0)
-            .map(|m| {
-                EnvSampler::new(
-                    m,
-                    options.env_rotation_degrees as f64,
-                    options.env_intensity as f64,
-                )
-            });
+            .map(|m| EnvSampler::new(m, options.env_rotation_degrees as f64, options.env_intensity as f64));
         Reference {
             bvh: Bvh::new(triangles),
             materials,
@@ -341,9 +291,7 @@ impl Reference {
         stats
             .chunks(chunks)
             .map(|per_point| {
-                let total = per_point
-                    .iter()
-                    .fold(Stats::default(), |acc, s| acc.merge(s));
+                let total = per_point.iter().fold(Stats::default(), |acc, s| acc.merge(s));
                 total.estimate()
             })
             .collect()
@@ -380,10 +328,7 @@ struct Stats {
 
 impl Stats {
     fn invalid() -> Stats {
-        Stats {
-            invalid: true,
-            ..Default::default()
-        }
+        Stats { invalid: true, ..Default::default() }
     }
 
     fn push(&mut self, x: DVec3) {
@@ -395,10 +340,7 @@ impl Stats {
 
     fn merge(self, other: &Stats) -> Stats {
         if self.n == 0.0 {
-            return Stats {
-                invalid: self.invalid || other.invalid,
-                ..*other
-            };
+            return Stats { invalid: self.invalid || other.invalid, ..*other };
         }
         let n = self.n + other.n;
         let delta = other.mean - self.mean;
@@ -412,22 +354,14 @@ impl Stats {
 
     fn estimate(&self) -> Estimate {
         if self.invalid || self.n == 0.0 {
-            return Estimate {
-                lightmap: [f64::NAN; 3],
-                std_error: [f64::NAN; 3],
-            };
+            return Estimate { lightmap: [f64::NAN; 3], std_error: [f64::NAN; 3] };
         }
         let std_error = if self.n > 1.0 {
-            (self.m2.max(DVec3::ZERO) / ((self.n - 1.0) * self.n))
-                .to_array()
-                .map(f64::sqrt)
+            (self.m2.max(DVec3::ZERO) / ((self.n - 1.0) * self.n)).to_array().map(f64::sqrt)
         } else {
             [f64::INFINITY; 3]
         };
-        Estimate {
-            lightmap: self.mean.to_array(),
-            std_error,
-        }
+        Estimate { lightmap: self.mean.to_array(), std_error }
     }
 }
 

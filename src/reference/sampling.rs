@@ -58,10 +58,7 @@ impl Rng {
         for &k in keys {
             h = mix64(h ^ mix64(k));
         }
-        let mut rng = Rng {
-            state: 0,
-            increment: (mix64(h ^ 0xA5A5_A5A5_A5A5_A5A5) << 1) | 1,
-        };
+        let mut rng = Rng { state: 0, increment: (mix64(h ^ 0xA5A5_A5A5_A5A5_A5A5) << 1) | 1 };
         rng.next_u32();
         rng.state = rng.state.wrapping_add(h);
         rng.next_u32();
@@ -70,9 +67,7 @@ impl Rng {
 
     pub(crate) fn next_u32(&mut self) -> u32 {
         let old = self.state;
-        self.state = old
-            .wrapping_mul(PCG_MULTIPLIER)
-            .wrapping_add(self.increment);
+        self.state = old.wrapping_mul(PCG_MULTIPLIER).wrapping_add(self.increment);
         let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
         let rot = (old >> 59) as u32;
         xorshifted.rotate_right(rot)
@@ -91,10 +86,7 @@ pub(crate) fn basis(n: DVec3) -> (DVec3, DVec3) {
     let sign = 1.0f64.copysign(n.z);
     let a = -1.0 / (sign + n.z);
     let b = n.x * n.y * a;
-    (
-        DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
-        DVec3::new(b, sign + n.y * n.y * a, -n.y),
-    )
+    (DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), DVec3::new(b, sign + n.y * n.y * a, -n.y))
 }
 
 /// A cosine-distributed direction about unit `n` from two uniforms, and its
@@ -164,11 +156,8 @@ impl EnvSampler {
             map.height,
             map.texels.len()
         );
-        let texels: Vec<[f32; 3]> = map
-            .texels
-            .iter()
-            .map(|t| t.map(|c| if c.is_finite() && c > 0.0 { c } else { 0.0 }))
-            .collect();
+        let texels: Vec<[f32; 3]> =
+            map.texels.iter().map(|t| t.map(|c| if c.is_finite() && c > 0.0 { c } else { 0.0 })).collect();
         let cos_edges: Vec<f64> = (0..=height)
             .map(|k| {
                 if k == 0 {
@@ -184,12 +173,7 @@ impl EnvSampler {
         // MIS compensation (see the module's documentation): the mean
         // luminance over the sphere is left to cosine sampling.
         let mean = (0..height)
-            .map(|r| {
-                (0..width)
-                    .map(|c| luminance(texels[r * width + c]))
-                    .sum::<f64>()
-                    * solid_angle(r)
-            })
+            .map(|r| (0..width).map(|c| luminance(texels[r * width + c])).sum::<f64>() * solid_angle(r))
             .sum::<f64>()
             / (2.0 * TAU);
         let mut marginal = Vec::with_capacity(height + 1);
@@ -234,20 +218,12 @@ impl EnvSampler {
 
     fn to_map(&self, d: DVec3) -> DVec3 {
         // R_y(-angle) · d
-        DVec3::new(
-            self.cos_rot * d.x - self.sin_rot * d.z,
-            d.y,
-            self.sin_rot * d.x + self.cos_rot * d.z,
-        )
+        DVec3::new(self.cos_rot * d.x - self.sin_rot * d.z, d.y, self.sin_rot * d.x + self.cos_rot * d.z)
     }
 
     fn to_world(&self, d: DVec3) -> DVec3 {
         // R_y(angle) · d (right-handed: +X turns towards -Z for a positive angle).
-        DVec3::new(
-            self.cos_rot * d.x + self.sin_rot * d.z,
-            d.y,
-            -self.sin_rot * d.x + self.cos_rot * d.z,
-        )
+        DVec3::new(self.cos_rot * d.x + self.sin_rot * d.z, d.y, -self.sin_rot * d.x + self.cos_rot * d.z)
     }
 
     /// The pixel (row, column) a unit world direction falls in.
@@ -289,10 +265,7 @@ impl EnvSampler {
     /// is positive.
     fn find(cdf: &[f64], x: f64) -> usize {
         let n = cdf.len() - 1;
-        let mut i = cdf
-            .partition_point(|&v| v <= x)
-            .saturating_sub(1)
-            .min(n - 1);
+        let mut i = cdf.partition_point(|&v| v <= x).saturating_sub(1).min(n - 1);
         // Rounding can land on an empty interval at the end: step back to a
         // non-empty one (one exists because the total is positive).
         while i > 0 && cdf[i + 1] <= cdf[i] {
@@ -310,8 +283,7 @@ impl EnvSampler {
         let row = Self::find(&self.marginal, u[0] * self.total);
         let cdf = &self.conditional[row * (self.width + 1)..(row + 1) * (self.width + 1)];
         let col = Self::find(cdf, u[1] * cdf[self.width]);
-        let cos_theta =
-            self.cos_edges[row] + u[2] * (self.cos_edges[row + 1] - self.cos_edges[row]);
+        let cos_theta = self.cos_edges[row] + u[2] * (self.cos_edges[row + 1] - self.cos_edges[row]);
         let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
         let phi = ((col as f64 + u[3]) / self.width as f64 - 0.5) * TAU;
         let map_dir = DVec3::new(sin_theta * phi.cos(), cos_theta, sin_theta * phi.sin());
@@ -340,11 +312,7 @@ mod tests {
 
     #[test]
     fn basis_is_orthonormal() {
-        for n in [
-            DVec3::X,
-            DVec3::NEG_Z,
-            DVec3::new(0.3, -0.4, 0.5).normalize(),
-        ] {
+        for n in [DVec3::X, DVec3::NEG_Z, DVec3::new(0.3, -0.4, 0.5).normalize()] {
             let (t, b) = basis(n);
             assert!((t.length() - 1.0).abs() < 1e-12 && (b.length() - 1.0).abs() < 1e-12);
             assert!(t.dot(b).abs() < 1e-12 && t.dot(n).abs() < 1e-12 && b.dot(n).abs() < 1e-12);
@@ -375,17 +343,10 @@ mod tests {
         let env = EnvSampler::new(&map, 37.0, 2.0);
         let mut rng = Rng::new(&[7]);
         for _ in 0..2000 {
-            let s = env.sample([
-                rng.next_f64(),
-                rng.next_f64(),
-                rng.next_f64(),
-                rng.next_f64(),
-            ]);
+            let s = env.sample([rng.next_f64(), rng.next_f64(), rng.next_f64(), rng.next_f64()]);
             assert!((s.direction.length() - 1.0).abs() < 1e-12);
             assert!((env.pdf(s.direction) - s.pdf).abs() <= 1e-9 * s.pdf);
-            assert!(
-                (env.radiance(s.direction) - s.radiance).length() <= 1e-9 * s.radiance.length()
-            );
+            assert!((env.radiance(s.direction) - s.radiance).length() <= 1e-9 * s.radiance.length());
         }
     }
 }

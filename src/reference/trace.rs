@@ -40,17 +40,9 @@ impl Reference {
             // Next-event estimation towards the environment.
             if nee {
                 let env = env.unwrap();
-                let s = env.sample([
-                    rng.next_f64(),
-                    rng.next_f64(),
-                    rng.next_f64(),
-                    rng.next_f64(),
-                ]);
+                let s = env.sample([rng.next_f64(), rng.next_f64(), rng.next_f64(), rng.next_f64()]);
                 let cos = s.direction.dot(normal);
-                if cos > 0.0
-                    && s.pdf > 0.0
-                    && !self.bvh.occluded(origin, s.direction, f64::INFINITY, skip)
-                {
+                if cos > 0.0 && s.pdf > 0.0 && !self.bvh.occluded(origin, s.direction, f64::INFINITY, skip) {
                     let pdf_cos = cos * FRAC_1_PI;
                     // (cos/π)/pdf × weight
                     let weight = pdf_cos / s.pdf * balance(s.pdf, pdf_cos);
@@ -64,11 +56,7 @@ impl Reference {
             }
             let Some(hit) = self.bvh.closest(origin, direction, f64::INFINITY, skip) else {
                 if let Some(env) = env {
-                    let weight = if nee {
-                        balance(cos * FRAC_1_PI, env.pdf(direction))
-                    } else {
-                        1.0
-                    };
+                    let weight = if nee { balance(cos * FRAC_1_PI, env.pdf(direction)) } else { 1.0 };
                     result += beta * env.radiance(direction) * weight;
                 }
                 break;

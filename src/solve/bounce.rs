@@ -175,6 +175,7 @@ pub fn run(
     texels: &TexelSet,
     patches: &Patches,
     lightmap: &mut [[f32; 3]],
+    coverage: Option<&[f32]>,
     texels_per_unit: f32,
     options: &BounceOptions,
     progress: &mut dyn FnMut(u64, u64),
@@ -218,8 +219,7 @@ pub fn run(
     let _ = centre;
     let shooter_count = options.shooters_per_batch.clamp(1, MAX_SHOOTERS);
     let face = options.hemicube_size.clamp(16, 2048);
-    let tiles_per_row =
-        ((gpu.limits.max_texture_dimension_2d / (3 * face)).max(1)).min(shooter_count);
+    let tiles_per_row = ((gpu.limits.max_texture_dimension_2d / (3 * face)).max(1)).min(shooter_count);
     let tile_rows = shooter_count.div_ceil(tiles_per_row);
     let texel_world = 1.0 / texels_per_unit.max(1e-30);
     let (groups_x, groups_y) = gpu.dispatch_size(texels.texels.len() as u32, 64);
@@ -238,29 +238,13 @@ pub fn run(
         max_slope: 10.0,
         _pad: [0; 2],
     };
-    let patch_params = BounceParams {
-        row_stride: patch_groups_x * 64,
-        ..params
-    };
+    let patch_params = BounceParams { row_stride: patch_groups_x * 64, ..params };
 
-    let resources = resources(
-        gpu,
-        scene,
-        texels,
-        patches,
-        &unshot,
-        lightmap,
-        params,
-        face,
-        tiles_per_row,
-        tile_rows,
-    );
+    let resources = resources(gpu, scene, texels, patches, &unshot, lightmap, params, face, tiles_per_row, tile_rows);
     let patch_params_buffer = gpu.uniform_buffer("solve_patch_power params", &patch_params);
     let pipelines = pipelines(gpu, &resources, &patch_params_buffer);
 
-    let max_shots = options
-        .max_shots
-        .unwrap_or(64 * patches.patches.len() as u64);
+    let max_shots = options.max_shots.unwrap_or(64 * patches.patches.len() as u64);
     let mut shots = 0u64;
     let mut batches = 0u64;
     let mut trace = Vec::new();
@@ -286,28 +270,11 @@ pub fn run(
         gathered += stats.received[3] as f64;
         last = stats;
         let unshot_power = stats.unshot[3] as f64;
-        let unshot_fraction = if power_in > 0.0 {
-            unshot_power / power_in
-        } else {
-            0.0
-        };
-        let closure = if shot_total > 0.0 {
-            (received_total / shot_total).min(1.0)
-        } else {
-            1.0
-        };
+        let unshot_fraction = if power_in > 0.0 { unshot_power / power_in } else { 0.0 };
+        let closure = if shot_total > 0.0 { (received_total / shot_total).min(1.0) } else { 1.0 };
         let ambient = ambient_term(stats.unshot, closure, mean_albedo, total_area);
-        let error_estimate = if gathered > 0.0 {
-            luminance(ambient) * total_area / gathered
-        } else {
-            0.0
-        };
-        trace.push(TracePoint {
-            seconds: start.elapsed().as_secs_f64(),
-            shots,
-            unshot_fraction,
-            error_estimate,
-        });
+        let error_estimate = if gathered > 0.0 { luminance(ambient) * total_area / gathered } else { 0.0 };
+        trace.push(TracePoint { seconds: start.elapsed().as_secs_f64(), shots, unshot_fraction, error_estimate });
 
         if unshot_fraction <= options.tolerance || stats.shooters == 0 {
             break;
@@ -316,23 +283,13 @@ pub fn run(
             stopped_by = "max shots".into();
             break;
         }
-        if options
-            .max_seconds
-            .is_some_and(|max| start.elapsed().as_secs_f64() >= max)
-        {
+        if options.max_seconds.is_some_and(|max| start.elapsed().as_secs_f64() >= max) {
             stopped_by = "max time".into();
             break;
         }
 
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        render_hemicubes(
-            &mut encoder,
-            &pipelines,
-            &resources,
-            shooter_count,
-            face,
-            tiles_per_row,
-        );
+        render_hemicubes(&mut encoder, &pipelines, &resources, shooter_count, face, tiles_per_row);
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
             pass.set_pipeline(&pipelines.shoot.0);
@@ -350,11 +307,23 @@ pub fn run(
     }
 
     let values: Vec<[f32; 4]> = read_buffer(gpu, &resources.lightmap, texels.texels.len())?;
+    let remaining: Vec<[f32; 4]> = read_buffer(gpu, &resources.unshot, texels.texels.len())?;
     gpu.check("solve (bounce)")?;
-    let closure = if shot_total > 0.0 {
-        (received_total / shot_total).min(1.0)
-    } else {
-        1.0
+    // Where the light not yet shot would go: the scene-covered share of each
+    // texel's hemisphere (from the direct pass), weighted by its unshot power;
+    // without a direct pass, the share measured over the shots taken.
+    let closure = match coverage {
+        Some(coverage) => {
+            let (mut covered, mut total) = (0.0f64, 0.0f64);
+            for ((t, u), c) in texels.texels.iter().zip(&remaining).zip(coverage) {
+                let power = luminance([u[0] as f64, u[1] as f64, u[2] as f64]) * t.area as f64;
+                covered += power * *c as f64;
+                total += power;
+            }
+            if total > 0.0 { covered / total } else { 0.0 }
+        }
+        None if shot_total > 0.0 => (received_total / shot_total).min(1.0),
+        None => 1.0,
     };
     let ambient = ambient_term(last.unshot, closure, mean_albedo, total_area).map(|a| a as f32);
     for (out, v) in lightmap.iter_mut().zip(values) {
@@ -404,11 +373,7 @@ fn resources(
     let (vertices, indices, index_count) = super::direct::caster_buffers(gpu, scene);
     let depth = gpu.device.create_texture(&wgpu::TextureDescriptor {
         label: Some("solve_hemicube depth"),
-        size: wgpu::Extent3d {
-            width: 3 * face * tiles_per_row,
-            height: face * tile_rows,
-            depth_or_array_layers: 1,
-        },
+        size: wgpu::Extent3d { width: 3 * face * tiles_per_row, height: face * tile_rows, depth_or_array_layers: 1 },
         mip_level_count: 1,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
@@ -423,32 +388,12 @@ fn resources(
         texel_patch: gpu.storage_buffer("solve_shoot texel patches", &patches.texel_patch, none),
         patches: gpu.storage_buffer("solve_select patches", &patches.patches, none),
         members: gpu.storage_buffer("solve_patch_power members", &patches.members, none),
-        unshot: gpu.storage_buffer("solve_shoot unshot", unshot, none),
-        lightmap: gpu.storage_buffer(
-            "solve_shoot lightmap",
-            &lightmap4,
-            wgpu::BufferUsages::COPY_SRC,
-        ),
-        patch_power: gpu.storage_buffer(
-            "solve_patch_power power",
-            &vec![[0f32; 4]; patches.patches.len()],
-            none,
-        ),
-        chosen: gpu.storage_buffer(
-            "solve_select chosen",
-            &vec![0u32; patches.patches.len()],
-            none,
-        ),
-        shooters: gpu.storage_buffer(
-            "solve_select shooters",
-            &[Shooter::default(); MAX_SHOOTERS as usize],
-            none,
-        ),
-        stats: gpu.storage_buffer(
-            "solve_select stats",
-            &[GpuStats::default()],
-            wgpu::BufferUsages::COPY_SRC,
-        ),
+        unshot: gpu.storage_buffer("solve_shoot unshot", unshot, wgpu::BufferUsages::COPY_SRC),
+        lightmap: gpu.storage_buffer("solve_shoot lightmap", &lightmap4, wgpu::BufferUsages::COPY_SRC),
+        patch_power: gpu.storage_buffer("solve_patch_power power", &vec![[0f32; 4]; patches.patches.len()], none),
+        chosen: gpu.storage_buffer("solve_select chosen", &vec![0u32; patches.patches.len()], none),
+        shooters: gpu.storage_buffer("solve_select shooters", &[Shooter::default(); MAX_SHOOTERS as usize], none),
+        stats: gpu.storage_buffer("solve_select stats", &[GpuStats::default()], wgpu::BufferUsages::COPY_SRC),
         depth_view: depth.create_view(&Default::default()),
         vertices,
         indices,
@@ -459,11 +404,7 @@ fn resources(
 fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines {
     let compute = wgpu::ShaderStages::COMPUTE;
     let layout = |label: &str, entries: &[wgpu::BindGroupLayoutEntry]| {
-        gpu.device
-            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some(label),
-                entries,
-            })
+        gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries })
     };
 
     let power_layout = layout(
@@ -484,14 +425,7 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
         gpu,
         "solve_patch_power",
         &power_layout,
-        &[
-            patch_params,
-            &r.texels,
-            &r.patches,
-            &r.members,
-            &r.unshot,
-            &r.patch_power,
-        ],
+        &[patch_params, &r.texels, &r.patches, &r.members, &r.unshot, &r.patch_power],
     );
 
     let select_layout = layout(
@@ -511,14 +445,7 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
         gpu,
         "solve_select",
         &select_layout,
-        &[
-            &r.params,
-            &r.patches,
-            &r.patch_power,
-            &r.chosen,
-            &r.shooters,
-            &r.stats,
-        ],
+        &[&r.params, &r.patches, &r.patch_power, &r.chosen, &r.shooters, &r.stats],
     );
 
     let vertex = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
@@ -530,12 +457,7 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             gpu::storage_entry(1, true, wgpu::ShaderStages::VERTEX),
         ],
     );
-    let hemicube_group = gpu::bind_buffers(
-        gpu,
-        "solve_hemicube",
-        &hemicube_layout,
-        &[&r.params, &r.shooters],
-    );
+    let hemicube_group = gpu::bind_buffers(gpu, "solve_hemicube", &hemicube_layout, &[&r.params, &r.shooters]);
 
     let shoot_layout = layout(
         "solve_shoot",
@@ -565,96 +487,59 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
         label: Some("solve_shoot"),
         layout: &shoot_layout,
         entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: r.params.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: r.texels.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 2,
-                resource: r.texel_patch.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 3,
-                resource: r.shooters.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 4,
-                resource: r.lightmap.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 5,
-                resource: r.unshot.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 6,
-                resource: wgpu::BindingResource::TextureView(&r.depth_view),
-            },
+            wgpu::BindGroupEntry { binding: 0, resource: r.params.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 1, resource: r.texels.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 2, resource: r.texel_patch.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 3, resource: r.shooters.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 4, resource: r.lightmap.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 5, resource: r.unshot.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 6, resource: wgpu::BindingResource::TextureView(&r.depth_view) },
         ],
     });
 
     let module = gpu.shader(Shader::SolveHemicube);
-    let hemicube_pipeline_layout =
-        gpu.device
-            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("solve_hemicube"),
-                bind_group_layouts: &[Some(&hemicube_layout)],
-                immediate_size: 0,
-            });
-    let hemicube = gpu
-        .device
-        .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("solve_hemicube"),
-            layout: Some(&hemicube_pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_hemicube"),
-                compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: 12,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &wgpu::vertex_attr_array![0 => Float32x3],
-                })],
-            },
-            primitive: wgpu::PrimitiveState {
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: wgpu::TextureFormat::Depth32Float,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_hemicube"),
-                compilation_options: Default::default(),
-                targets: &[],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+    let hemicube_pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("solve_hemicube"),
+        bind_group_layouts: &[Some(&hemicube_layout)],
+        immediate_size: 0,
+    });
+    let hemicube = gpu.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("solve_hemicube"),
+        layout: Some(&hemicube_pipeline_layout),
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vs_hemicube"),
+            compilation_options: Default::default(),
+            buffers: &[Some(wgpu::VertexBufferLayout {
+                array_stride: 12,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &wgpu::vertex_attr_array![0 => Float32x3],
+            })],
+        },
+        primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: wgpu::TextureFormat::Depth32Float,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: &module,
+            entry_point: Some("fs_hemicube"),
+            compilation_options: Default::default(),
+            targets: &[],
+        }),
+        multiview_mask: None,
+        cache: None,
+    });
 
     Pipelines {
-        power: (
-            gpu.compute_pipeline(Shader::SolvePatchPower, "main", &[&power_layout]),
-            power_group,
-        ),
-        select: (
-            gpu.compute_pipeline(Shader::SolveSelect, "main", &[&select_layout]),
-            select_group,
-        ),
+        power: (gpu.compute_pipeline(Shader::SolvePatchPower, "main", &[&power_layout]), power_group),
+        select: (gpu.compute_pipeline(Shader::SolveSelect, "main", &[&select_layout]), select_group),
         hemicube: (hemicube, hemicube_group),
-        shoot: (
-            gpu.compute_pipeline(Shader::SolveShoot, "main", &[&shoot_layout]),
-            shoot_group,
-        ),
+        shoot: (gpu.compute_pipeline(Shader::SolveShoot, "main", &[&shoot_layout]), shoot_group),
     }
 }
 
@@ -673,10 +558,7 @@ fn render_hemicubes(
         color_attachments: &[],
         depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
             view: &r.depth_view,
-            depth_ops: Some(wgpu::Operations {
-                load: wgpu::LoadOp::Clear(1.0),
-                store: wgpu::StoreOp::Store,
-            }),
+            depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
             stencil_ops: None,
         }),
         timestamp_writes: None,
@@ -689,10 +571,7 @@ fn render_hemicubes(
     pass.set_index_buffer(r.indices.slice(..), wgpu::IndexFormat::Uint32);
     let s = face as f32;
     for slot in 0..shooters {
-        let tile = [
-            (slot % tiles_per_row) as f32 * 3.0 * s,
-            (slot / tiles_per_row) as f32 * s,
-        ];
+        let tile = [(slot % tiles_per_row) as f32 * 3.0 * s, (slot / tiles_per_row) as f32 * s];
         let views = [
             [tile[0], tile[1], s, s],
             [tile[0] + s, tile[1], s, 0.5 * s],

@@ -87,13 +87,20 @@ pub(super) fn bounding_sphere(scene: &Scene) -> (Vec3, f32) {
 /// Shadow maps resolve about two texels per lightmap texel across the scene.
 fn auto_shadow_map_size(radius: f32, texels_per_unit: f32, max_dimension: u32) -> u32 {
     let wanted = (4.0 * radius * texels_per_unit).ceil().max(1.0) as u32;
-    wanted
-        .next_power_of_two()
-        .clamp(512, 2048)
-        .min(max_dimension)
+    wanted.next_power_of_two().clamp(512, 2048).min(max_dimension)
 }
 
-/// Returns the irradiance E (rgb) gathered by every texel, in `TexelSet` order.
+/// What the direct pass found, per texel in `TexelSet` order.
+pub struct Direct {
+    /// Irradiance E (rgb).
+    pub irradiance: Vec<[f32; 3]>,
+    /// Share of the texel's hemisphere (cosine-weighted) that scene geometry
+    /// covers, as seen along the light directions: where its reflected light goes.
+    pub coverage: Vec<f32>,
+    pub stats: DirectStats,
+}
+
+/// Gathers the environment's light at every texel.
 pub fn run(
     gpu: &Gpu,
     scene: &Scene,
@@ -102,14 +109,12 @@ pub fn run(
     texels_per_unit: f32,
     options: &SolveOptions,
     progress: &mut dyn FnMut(u64, u64),
-) -> Result<(Vec<[f32; 3]>, DirectStats)> {
+) -> Result<Direct> {
     let start = Instant::now();
     let (centre, radius) = bounding_sphere(scene);
     let size = options
         .shadow_map_size
-        .unwrap_or_else(|| {
-            auto_shadow_map_size(radius, texels_per_unit, gpu.limits.max_texture_dimension_2d)
-        })
+        .unwrap_or_else(|| auto_shadow_map_size(radius, texels_per_unit, gpu.limits.max_texture_dimension_2d))
         .min(gpu.limits.max_texture_dimension_2d);
     let per_map = size as u64 * size as u64 * 4;
     let batch = (DEPTH_BUDGET_BYTES / per_map)
@@ -138,14 +143,12 @@ pub fn run(
     let (vertex_buffer, index_buffer, index_count) = caster_buffers(gpu, scene);
 
     let params_buffer = gpu.uniform_buffer("solve_direct params", &params);
-    let lights_buffer = gpu.uniform_buffer(
-        "solve_direct lights",
-        &[DirectLight::default(); MAX_BATCH as usize],
-    );
-    let texel_buffer = gpu.storage_buffer(
-        "solve_direct texels",
-        &texels.texels,
-        wgpu::BufferUsages::empty(),
+    let lights_buffer = gpu.uniform_buffer("solve_direct lights", &[DirectLight::default(); MAX_BATCH as usize]);
+    let texel_buffer = gpu.storage_buffer("solve_direct texels", &texels.texels, wgpu::BufferUsages::empty());
+    let coverage = gpu.storage_buffer(
+        "solve_direct coverage",
+        &vec![[0.0f32; 2]; texels.texels.len()],
+        wgpu::BufferUsages::COPY_SRC,
     );
     let irradiance = gpu.storage_buffer(
         "solve_direct irradiance",
@@ -156,11 +159,7 @@ pub fn run(
     let tile_rows = batch.div_ceil(tiles_per_row);
     let depth = gpu.device.create_texture(&wgpu::TextureDescriptor {
         label: Some("solve_depth maps"),
-        size: wgpu::Extent3d {
-            width: size * tiles_per_row,
-            height: size * tile_rows,
-            depth_or_array_layers: 1,
-        },
+        size: wgpu::Extent3d { width: size * tiles_per_row, height: size * tile_rows, depth_or_array_layers: 1 },
         mip_level_count: 1,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
@@ -171,74 +170,53 @@ pub fn run(
     let array_view = depth.create_view(&Default::default());
 
     let both = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::COMPUTE;
-    let depth_layout = gpu
-        .device
-        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("solve_depth"),
-            entries: &[
-                // 0: DirectParams (scene sphere, shadow-map size)
-                gpu::uniform_entry(0, both),
-                // 1: the batch's lights
-                gpu::uniform_entry(1, both),
-            ],
-        });
-    let depth_group = gpu::bind_buffers(
-        gpu,
-        "solve_depth",
-        &depth_layout,
-        &[&params_buffer, &lights_buffer],
-    );
+    let depth_layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("solve_depth"),
+        entries: &[
+            // 0: DirectParams (scene sphere, shadow-map size)
+            gpu::uniform_entry(0, both),
+            // 1: the batch's lights
+            gpu::uniform_entry(1, both),
+        ],
+    });
+    let depth_group = gpu::bind_buffers(gpu, "solve_depth", &depth_layout, &[&params_buffer, &lights_buffer]);
     let depth_pipeline = depth_pipeline(gpu, &depth_layout);
 
     let compute = wgpu::ShaderStages::COMPUTE;
-    let gather_layout = gpu
-        .device
-        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("solve_direct"),
-            entries: &[
-                // 0: DirectParams, 1: the batch's lights
-                gpu::uniform_entry(0, both),
-                gpu::uniform_entry(1, both),
-                // 2: texels (read), 3: irradiance (accumulated)
-                gpu::storage_entry(2, true, compute),
-                gpu::storage_entry(3, false, compute),
-                // 4: the batch's depth maps
-                wgpu::BindGroupLayoutEntry {
-                    binding: 4,
-                    visibility: compute,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Depth,
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
+    let gather_layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("solve_direct"),
+        entries: &[
+            // 0: DirectParams, 1: the batch's lights
+            gpu::uniform_entry(0, both),
+            gpu::uniform_entry(1, both),
+            // 2: texels (read), 3: irradiance (accumulated)
+            gpu::storage_entry(2, true, compute),
+            gpu::storage_entry(3, false, compute),
+            // 4: the batch's depth maps
+            wgpu::BindGroupLayoutEntry {
+                binding: 4,
+                visibility: compute,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Depth,
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
                 },
-            ],
-        });
+                count: None,
+            },
+            // 5: blocked and total Ω cos θ per texel (accumulated)
+            gpu::storage_entry(5, false, compute),
+        ],
+    });
     let gather_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("solve_direct"),
         layout: &gather_layout,
         entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: params_buffer.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: lights_buffer.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 2,
-                resource: texel_buffer.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 3,
-                resource: irradiance.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 4,
-                resource: wgpu::BindingResource::TextureView(&array_view),
-            },
+            wgpu::BindGroupEntry { binding: 0, resource: params_buffer.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 1, resource: lights_buffer.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 2, resource: texel_buffer.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 3, resource: irradiance.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&array_view) },
+            wgpu::BindGroupEntry { binding: 5, resource: coverage.as_entire_binding() },
         ],
     });
     let gather_pipeline = gpu.compute_pipeline(Shader::SolveDirect, "main", &[&gather_layout]);
@@ -250,19 +228,12 @@ pub fn run(
         for (slot, light) in slots.iter_mut().zip(chunk) {
             let [r, g, b] = light.radiance;
             let omega = light.solid_angle;
-            slot.direction = [
-                light.direction[0],
-                light.direction[1],
-                light.direction[2],
-                0.0,
-            ];
-            slot.power = [r * omega, g * omega, b * omega, 0.0];
+            slot.direction = [light.direction[0], light.direction[1], light.direction[2], 0.0];
+            slot.power = [r * omega, g * omega, b * omega, omega];
         }
         params.light_count = chunk.len() as u32;
-        gpu.queue
-            .write_buffer(&params_buffer, 0, bytemuck::bytes_of(&params));
-        gpu.queue
-            .write_buffer(&lights_buffer, 0, bytemuck::cast_slice(&slots));
+        gpu.queue.write_buffer(&params_buffer, 0, bytemuck::bytes_of(&params));
+        gpu.queue.write_buffer(&lights_buffer, 0, bytemuck::cast_slice(&slots));
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -270,10 +241,7 @@ pub fn run(
                 color_attachments: &[],
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                     view: &array_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Store,
-                    }),
+                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
                     stencil_ops: None,
                 }),
                 timestamp_writes: None,
@@ -286,14 +254,7 @@ pub fn run(
             pass.set_index_buffer(index_buffer.slice(..), wgpu::IndexFormat::Uint32);
             for slot in 0..chunk.len() as u32 {
                 let (tx, ty) = (slot % tiles_per_row, slot / tiles_per_row);
-                pass.set_viewport(
-                    (tx * size) as f32,
-                    (ty * size) as f32,
-                    size as f32,
-                    size as f32,
-                    0.0,
-                    1.0,
-                );
+                pass.set_viewport((tx * size) as f32, (ty * size) as f32, size as f32, size as f32, 0.0, 1.0);
                 pass.draw_indexed(0..index_count, 0, slot..slot + 1);
             }
         }
@@ -309,19 +270,21 @@ pub fn run(
         progress((chunk_index * batch as usize + chunk.len()) as u64, total);
     }
     let sums: Vec<[f32; 4]> = read_buffer(gpu, &irradiance, texels.texels.len())?;
+    let covered: Vec<[f32; 2]> = read_buffer(gpu, &coverage, texels.texels.len())?;
     gpu.check("solve (direct)")?;
     let stats = DirectStats {
         lights: lights.lights.len(),
         batches,
         shadow_map_size: size,
         evaluations: total * texel_count as u64,
-        shadowed_texels: sums.iter().filter(|e| e[3] > 0.0).count() as u64,
+        shadowed_texels: covered.iter().filter(|c| c[0] > 0.0).count() as u64,
         seconds: start.elapsed().as_secs_f64(),
     };
-    Ok((
-        sums.into_iter().map(|e| [e[0], e[1], e[2]]).collect(),
+    Ok(Direct {
+        irradiance: sums.into_iter().map(|e| [e[0], e[1], e[2]]).collect(),
+        coverage: covered.iter().map(|c| if c[1] > 0.0 { c[0] / c[1] } else { 0.0 }).collect(),
         stats,
-    ))
+    })
 }
 
 /// Shadow casters for depth maps: every triangle of the scene in world space,
@@ -341,41 +304,35 @@ pub(super) fn caster_buffers(gpu: &Gpu, scene: &Scene) -> (wgpu::Buffer, wgpu::B
 
 fn depth_pipeline(gpu: &Gpu, layout: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
     let module = gpu.shader(Shader::SolveDepth);
-    let pipeline_layout = gpu
-        .device
-        .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("solve_depth"),
-            bind_group_layouts: &[Some(layout)],
-            immediate_size: 0,
-        });
-    gpu.device
-        .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("solve_depth"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_depth"),
-                compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: 12,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &wgpu::vertex_attr_array![0 => Float32x3],
-                })],
-            },
-            primitive: wgpu::PrimitiveState {
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: wgpu::TextureFormat::Depth32Float,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: None,
-            multiview_mask: None,
-            cache: None,
-        })
+    let pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("solve_depth"),
+        bind_group_layouts: &[Some(layout)],
+        immediate_size: 0,
+    });
+    gpu.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("solve_depth"),
+        layout: Some(&pipeline_layout),
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vs_depth"),
+            compilation_options: Default::default(),
+            buffers: &[Some(wgpu::VertexBufferLayout {
+                array_stride: 12,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &wgpu::vertex_attr_array![0 => Float32x3],
+            })],
+        },
+        primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: wgpu::TextureFormat::Depth32Float,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: Default::default(),
+        fragment: None,
+        multiview_mask: None,
+        cache: None,
+    })
 }

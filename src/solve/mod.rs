@@ -33,11 +33,7 @@ pub struct SolveOptions {
 
 impl Default for SolveOptions {
     fn default() -> Self {
-        SolveOptions {
-            shadow_map_size: None,
-            batch_size: 64,
-            bounce: BounceOptions::default(),
-        }
+        SolveOptions { shadow_map_size: None, batch_size: 64, bounce: BounceOptions::default() }
     }
 }
 
@@ -67,10 +63,7 @@ pub struct Skipped {
 }
 
 fn skip(skipped: &mut Vec<Skipped>, pass: &str, reason: &str) {
-    skipped.push(Skipped {
-        pass: pass.into(),
-        reason: reason.into(),
-    });
+    skipped.push(Skipped { pass: pass.into(), reason: reason.into() });
 }
 
 /// Runs every pass the scene needs. `progress(done, total)` reports the
@@ -88,74 +81,46 @@ pub fn run(
     let mut lightmap = vec![[0.0f32; 3]; texels.texels.len()];
     let mut direct_stats = None;
     let mut sees_itself = true;
+    let mut coverage = None;
     match lights {
         Some(lights) if !lights.lights.is_empty() => {
-            let (irradiance, stats) = direct::run(
-                gpu,
-                scene,
-                texels,
-                lights,
-                texels_per_unit,
-                options,
-                progress,
-            )?;
-            for (value, e) in lightmap.iter_mut().zip(irradiance) {
+            let direct = direct::run(gpu, scene, texels, lights, texels_per_unit, options, progress)?;
+            for (value, e) in lightmap.iter_mut().zip(&direct.irradiance) {
                 *value = e.map(|c| c / std::f32::consts::PI);
             }
-            sees_itself = stats.shadowed_texels > 0;
-            direct_stats = Some(stats);
+            sees_itself = direct.stats.shadowed_texels > 0;
+            direct_stats = Some(direct.stats);
+            coverage = Some(direct.coverage);
         }
         Some(_) => skip(&mut skipped, "direct", "the environment has no energy"),
         None => skip(&mut skipped, "direct", "no environment was given"),
     }
 
-    let emitters = texels
-        .texels
-        .iter()
-        .any(|t| t.area > 0.0 && t.emission.iter().any(|&e| e > 0.0));
-    let reflects = texels
-        .texels
-        .iter()
-        .zip(&lightmap)
-        .any(|(t, l)| t.area > 0.0 && (0..3).any(|c| t.albedo[c] * l[c] > 0.0));
+    let emitters = texels.texels.iter().any(|t| t.area > 0.0 && t.emission.iter().any(|&e| e > 0.0));
+    let reflects =
+        texels.texels.iter().zip(&lightmap).any(|(t, l)| t.area > 0.0 && (0..3).any(|c| t.albedo[c] * l[c] > 0.0));
     if !emitters {
         skip(&mut skipped, "emission", "no surface is emissive");
     }
     let mut bounce_stats = None;
     if !emitters && !reflects {
-        skip(
-            &mut skipped,
-            "bounce",
-            "no light to bounce: the surfaces are black or unlit",
-        );
+        skip(&mut skipped, "bounce", "no light to bounce: the surfaces are black or unlit");
     } else if !sees_itself {
-        skip(
-            &mut skipped,
-            "bounce",
-            "no surface sees another (every texel sees open sky in every direction)",
-        );
+        skip(&mut skipped, "bounce", "no surface sees another (every texel sees open sky in every direction)");
     } else {
-        let patches = patches::build(
-            texels,
-            options.bounce.patches,
-            1.0 / texels_per_unit.max(1e-30),
-        );
+        let patches = patches::build(texels, options.bounce.patches, 1.0 / texels_per_unit.max(1e-30));
         let stats = bounce::run(
             gpu,
             scene,
             texels,
             &patches,
             &mut lightmap,
+            coverage.as_deref(),
             texels_per_unit,
             &options.bounce,
             progress,
         )?;
         bounce_stats = Some(stats);
     }
-    Ok(Solution {
-        lightmap,
-        direct: direct_stats,
-        bounce: bounce_stats,
-        skipped,
-    })
+    Ok(Solution { lightmap, direct: direct_stats, bounce: bounce_stats, skipped })
 }

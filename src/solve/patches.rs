@@ -98,12 +98,7 @@ pub fn build(texels: &TexelSet, target: u32, texel_size: f32) -> Patches {
         patches.push(patch(texels, &order[start..end], start as u32, texel_size));
         start = end;
     }
-    Patches {
-        patches,
-        members: order,
-        texel_patch,
-        cell,
-    }
+    Patches { patches, members: order, texel_patch, cell }
 }
 
 fn patch(texels: &TexelSet, members: &[u32], first: u32, texel_size: f32) -> Patch {
@@ -117,29 +112,17 @@ fn patch(texels: &TexelSet, members: &[u32], first: u32, texel_size: f32) -> Pat
         normal += t.normal() * t.area.max(1e-30);
     }
     let first_texel = &texels.texels[members[0] as usize];
-    let centroid = if area > 0.0 {
-        (centroid / area).as_vec3()
-    } else {
-        first_texel.position()
-    };
+    let centroid = if area > 0.0 { (centroid / area).as_vec3() } else { first_texel.position() };
     let normal = normal.try_normalize().unwrap_or(Vec3::Y);
-    let lift = members
-        .iter()
-        .map(|&i| (texels.texels[i as usize].position() - centroid).dot(normal))
-        .fold(0.0f32, f32::max);
+    let lift =
+        members.iter().map(|&i| (texels.texels[i as usize].position() - centroid).dot(normal)).fold(0.0f32, f32::max);
 
     // Affine fit P(x, y) ≈ c + U (x − x̄) + V (y − ȳ), from the texels that
     // lie wholly on the surface (border texels take an inset position, not
     // the image of their atlas cell).
-    let largest = members
-        .iter()
-        .map(|&i| texels.texels[i as usize].area)
-        .fold(0.0f32, f32::max);
-    let whole: Vec<u32> = members
-        .iter()
-        .copied()
-        .filter(|&i| texels.texels[i as usize].area >= 0.9 * largest)
-        .collect();
+    let largest = members.iter().map(|&i| texels.texels[i as usize].area).fold(0.0f32, f32::max);
+    let whole: Vec<u32> =
+        members.iter().copied().filter(|&i| texels.texels[i as usize].area >= 0.9 * largest).collect();
     let (c, u, v) = affine_fit(texels, if whole.len() >= 3 { &whole } else { members })
         .or_else(|| affine_fit(texels, members))
         .unwrap_or_else(|| {
@@ -231,11 +214,7 @@ mod tests {
                 });
             }
         }
-        TexelSet {
-            width: 8,
-            height: 8,
-            texels,
-        }
+        TexelSet { width: 8, height: 8, texels }
     }
 
     #[test]

@@ -151,26 +151,17 @@ fn flatten(scene: &Scene, atlas: &Atlas) -> Mesh {
         let material = primitive.material.map_or(default_material, |m| m as u32);
         for (t, corner) in unwrapped.indices.chunks_exact(3).enumerate() {
             let face_normal = primitive.face_normal(t);
-            let [a, b, c] = [0, 1, 2].map(|k| {
-                Vec3::from(
-                    primitive.positions[unwrapped.vertices[corner[k] as usize].xref as usize],
-                )
-            });
+            let [a, b, c] = [0, 1, 2]
+                .map(|k| Vec3::from(primitive.positions[unwrapped.vertices[corner[k] as usize].xref as usize]));
             let world_area = 0.5 * (b - a).cross(c - a).length();
             let uv = [0, 1, 2].map(|k| {
                 let v = unwrapped.vertices[corner[k] as usize].uv;
                 [v[0] * size[0], v[1] * size[1]]
             });
             let uv_area = 0.5
-                * ((uv[1][0] - uv[0][0]) * (uv[2][1] - uv[0][1])
-                    - (uv[2][0] - uv[0][0]) * (uv[1][1] - uv[0][1]))
-                    .abs();
+                * ((uv[1][0] - uv[0][0]) * (uv[2][1] - uv[0][1]) - (uv[2][0] - uv[0][0]) * (uv[1][1] - uv[0][1])).abs();
             mesh.corners.extend_from_slice(&uv);
-            mesh.area_ratio.push(if uv_area > 1e-12 {
-                world_area / uv_area
-            } else {
-                0.0
-            });
+            mesh.area_ratio.push(if uv_area > 1e-12 { world_area / uv_area } else { 0.0 });
             mesh.triangles.push(GpuTriangle {
                 corners: [base + corner[0], base + corner[1], base + corner[2]],
                 material,
@@ -178,8 +169,7 @@ fn flatten(scene: &Scene, atlas: &Atlas) -> Mesh {
                 _pad: 0,
             });
             mesh.triangle_primitive.push(p as u32);
-            mesh.triangle_chart
-                .push(unwrapped.vertices[corner[0] as usize].chart);
+            mesh.triangle_chart.push(unwrapped.vertices[corner[0] as usize].chart);
         }
     }
     mesh
@@ -188,11 +178,7 @@ fn flatten(scene: &Scene, atlas: &Atlas) -> Mesh {
 /// Rasterizes the scene's triangles into the atlas and returns every texel they touch.
 pub fn run(gpu: &Gpu, scene: &Scene, atlas: &Atlas) -> Result<TexelSet> {
     if atlas.meshes.len() != scene.primitives.len() {
-        bail!(
-            "texelize: the atlas has {} meshes for {} primitives",
-            atlas.meshes.len(),
-            scene.primitives.len()
-        );
+        bail!("texelize: the atlas has {} meshes for {} primitives", atlas.meshes.len(), scene.primitives.len());
     }
     let max = gpu.limits.max_texture_dimension_2d;
     if atlas.width > max || atlas.height > max {
@@ -210,9 +196,5 @@ pub fn run(gpu: &Gpu, scene: &Scene, atlas: &Atlas) -> Result<TexelSet> {
         texel.chart = mesh.triangle_chart[texel.triangle as usize];
     }
     gpu.check("texelize")?;
-    Ok(TexelSet {
-        width: atlas.width,
-        height: atlas.height,
-        texels,
-    })
+    Ok(TexelSet { width: atlas.width, height: atlas.height, texels })
 }

@@ -48,20 +48,10 @@ struct Targets {
     depth: wgpu::Texture,
 }
 
-fn target(
-    gpu: &Gpu,
-    label: &str,
-    width: u32,
-    height: u32,
-    format: wgpu::TextureFormat,
-) -> wgpu::Texture {
+fn target(gpu: &Gpu, label: &str, width: u32, height: u32, format: wgpu::TextureFormat) -> wgpu::Texture {
     gpu.device.create_texture(&wgpu::TextureDescriptor {
         label: Some(label),
-        size: wgpu::Extent3d {
-            width,
-            height,
-            depth_or_array_layers: 1,
-        },
+        size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
         mip_level_count: 1,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
@@ -75,34 +65,10 @@ fn target(
 /// (`chart` and `primitive` still unset).
 pub(super) fn texelize(gpu: &Gpu, mesh: &Mesh, width: u32, height: u32) -> Result<Vec<Texel>> {
     let targets = Targets {
-        triangle: target(
-            gpu,
-            "texelize triangle ids",
-            width,
-            height,
-            wgpu::TextureFormat::R32Uint,
-        ),
-        bary: target(
-            gpu,
-            "texelize barycentrics",
-            width,
-            height,
-            wgpu::TextureFormat::Rg32Float,
-        ),
-        area: target(
-            gpu,
-            "texelize areas",
-            width,
-            height,
-            wgpu::TextureFormat::R32Float,
-        ),
-        depth: target(
-            gpu,
-            "texelize distance",
-            width,
-            height,
-            wgpu::TextureFormat::Depth32Float,
-        ),
+        triangle: target(gpu, "texelize triangle ids", width, height, wgpu::TextureFormat::R32Uint),
+        bary: target(gpu, "texelize barycentrics", width, height, wgpu::TextureFormat::Rg32Float),
+        area: target(gpu, "texelize areas", width, height, wgpu::TextureFormat::R32Float),
+        depth: target(gpu, "texelize distance", width, height, wgpu::TextureFormat::Depth32Float),
     };
     rasterize(gpu, mesh, width, height, &targets);
     interpolate(gpu, mesh, width, height, &targets)
@@ -119,49 +85,30 @@ fn rasterize(gpu: &Gpu, mesh: &Mesh, width: u32, height: u32, targets: &Targets)
             _pad: [0.0; 3],
         },
     );
-    let corners = gpu.storage_buffer(
-        "texelize corners",
-        &mesh.corners,
-        wgpu::BufferUsages::empty(),
-    );
-    let ratios = gpu.storage_buffer(
-        "texelize area ratios",
-        &mesh.area_ratio,
-        wgpu::BufferUsages::empty(),
-    );
+    let corners = gpu.storage_buffer("texelize corners", &mesh.corners, wgpu::BufferUsages::empty());
+    let ratios = gpu.storage_buffer("texelize area ratios", &mesh.area_ratio, wgpu::BufferUsages::empty());
     let stages = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
-    let layout = gpu
-        .device
-        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("texelize_raster"),
-            entries: &[
-                // 0: RasterParams (atlas size, dilation)
-                gpu::uniform_entry(0, stages),
-                // 1: triangle corners in texel units, three per triangle
-                gpu::storage_entry(1, true, wgpu::ShaderStages::VERTEX),
-                // 2: world area per UV area, one per triangle
-                gpu::storage_entry(2, true, wgpu::ShaderStages::VERTEX),
-            ],
-        });
-    let bind_group = gpu::bind_buffers(
-        gpu,
-        "texelize_raster",
-        &layout,
-        &[&params, &corners, &ratios],
-    );
+    let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("texelize_raster"),
+        entries: &[
+            // 0: RasterParams (atlas size, dilation)
+            gpu::uniform_entry(0, stages),
+            // 1: triangle corners in texel units, three per triangle
+            gpu::storage_entry(1, true, wgpu::ShaderStages::VERTEX),
+            // 2: world area per UV area, one per triangle
+            gpu::storage_entry(2, true, wgpu::ShaderStages::VERTEX),
+        ],
+    });
+    let bind_group = gpu::bind_buffers(gpu, "texelize_raster", &layout, &[&params, &corners, &ratios]);
     let module = gpu.shader(Shader::TexelizeRaster);
-    let pipeline_layout = gpu
-        .device
-        .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("texelize_raster"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-    let pipeline = |fragment: &str,
-                    targets: &[Option<wgpu::ColorTargetState>],
-                    depth: Option<wgpu::DepthStencilState>| {
-        gpu.device
-            .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+    let pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("texelize_raster"),
+        bind_group_layouts: &[Some(&layout)],
+        immediate_size: 0,
+    });
+    let pipeline =
+        |fragment: &str, targets: &[Option<wgpu::ColorTargetState>], depth: Option<wgpu::DepthStencilState>| {
+            gpu.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some("texelize_raster"),
                 layout: Some(&pipeline_layout),
                 vertex: wgpu::VertexState {
@@ -170,10 +117,7 @@ fn rasterize(gpu: &Gpu, mesh: &Mesh, width: u32, height: u32, targets: &Targets)
                     compilation_options: Default::default(),
                     buffers: &[],
                 },
-                primitive: wgpu::PrimitiveState {
-                    cull_mode: None,
-                    ..Default::default()
-                },
+                primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
                 depth_stencil: depth,
                 multisample: Default::default(),
                 fragment: Some(wgpu::FragmentState {
@@ -185,13 +129,10 @@ fn rasterize(gpu: &Gpu, mesh: &Mesh, width: u32, height: u32, targets: &Targets)
                 multiview_mask: None,
                 cache: None,
             })
-    };
+        };
     let nearest = pipeline(
         "fs_nearest",
-        &[
-            Some(wgpu::TextureFormat::R32Uint.into()),
-            Some(wgpu::TextureFormat::Rg32Float.into()),
-        ],
+        &[Some(wgpu::TextureFormat::R32Uint.into()), Some(wgpu::TextureFormat::Rg32Float.into())],
         Some(wgpu::DepthStencilState {
             format: wgpu::TextureFormat::Depth32Float,
             depth_write_enabled: Some(true),
@@ -209,10 +150,7 @@ fn rasterize(gpu: &Gpu, mesh: &Mesh, width: u32, height: u32, targets: &Targets)
         "fs_area",
         &[Some(wgpu::ColorTargetState {
             format: wgpu::TextureFormat::R32Float,
-            blend: Some(wgpu::BlendState {
-                color: additive,
-                alpha: additive,
-            }),
+            blend: Some(wgpu::BlendState { color: additive, alpha: additive }),
             write_mask: wgpu::ColorWrites::ALL,
         })],
         None,
@@ -220,21 +158,14 @@ fn rasterize(gpu: &Gpu, mesh: &Mesh, width: u32, height: u32, targets: &Targets)
 
     let vertex_count = mesh.corners.len() as u32;
     let view = |t: &wgpu::Texture| t.create_view(&Default::default());
-    let (triangle_view, bary_view, area_view, depth_view) = (
-        view(&targets.triangle),
-        view(&targets.bary),
-        view(&targets.area),
-        view(&targets.depth),
-    );
+    let (triangle_view, bary_view, area_view, depth_view) =
+        (view(&targets.triangle), view(&targets.bary), view(&targets.area), view(&targets.depth));
     let clear = |v| {
         Some(wgpu::RenderPassColorAttachment {
             view: v,
             depth_slice: None,
             resolve_target: None,
-            ops: wgpu::Operations {
-                load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                store: wgpu::StoreOp::Store,
-            },
+            ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT), store: wgpu::StoreOp::Store },
         })
     };
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
@@ -244,10 +175,7 @@ fn rasterize(gpu: &Gpu, mesh: &Mesh, width: u32, height: u32, targets: &Targets)
             color_attachments: &[clear(&triangle_view), clear(&bary_view)],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                 view: &depth_view,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(1.0),
-                    store: wgpu::StoreOp::Store,
-                }),
+                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
                 stencil_ops: None,
             }),
             timestamp_writes: None,
@@ -274,32 +202,14 @@ fn rasterize(gpu: &Gpu, mesh: &Mesh, width: u32, height: u32, targets: &Targets)
     gpu.queue.submit([encoder.finish()]);
 }
 
-fn interpolate(
-    gpu: &Gpu,
-    mesh: &Mesh,
-    width: u32,
-    height: u32,
-    targets: &Targets,
-) -> Result<Vec<Texel>> {
+fn interpolate(gpu: &Gpu, mesh: &Mesh, width: u32, height: u32, targets: &Targets) -> Result<Vec<Texel>> {
     let texel_size = std::mem::size_of::<Texel>() as u64;
     let band_limit = BAND_BYTES.min(gpu.limits.max_storage_buffer_binding_size);
     let rows_per_band = ((band_limit / (texel_size * width as u64)).max(1) as u32).min(height);
 
-    let vertices = gpu.storage_buffer(
-        "texelize vertices",
-        &mesh.vertices,
-        wgpu::BufferUsages::empty(),
-    );
-    let triangles = gpu.storage_buffer(
-        "texelize triangles",
-        &mesh.triangles,
-        wgpu::BufferUsages::empty(),
-    );
-    let materials = gpu.storage_buffer(
-        "texelize materials",
-        &mesh.materials,
-        wgpu::BufferUsages::empty(),
-    );
+    let vertices = gpu.storage_buffer("texelize vertices", &mesh.vertices, wgpu::BufferUsages::empty());
+    let triangles = gpu.storage_buffer("texelize triangles", &mesh.triangles, wgpu::BufferUsages::empty());
+    let materials = gpu.storage_buffer("texelize materials", &mesh.materials, wgpu::BufferUsages::empty());
     let band = gpu.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("texelize band"),
         size: texel_size * width as u64 * rows_per_band as u64,
@@ -318,80 +228,46 @@ fn interpolate(
     };
     let compute = wgpu::ShaderStages::COMPUTE;
     let unfilterable = wgpu::TextureSampleType::Float { filterable: false };
-    let layout = gpu
-        .device
-        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("texelize_attributes"),
-            entries: &[
-                // 0: AttributeParams (atlas size, band rows)
-                gpu::uniform_entry(0, compute),
-                // 1: nearest triangle id + 1 per texel
-                texture_entry(1, wgpu::TextureSampleType::Uint),
-                // 2: barycentrics of corners b, c
-                texture_entry(2, unfilterable),
-                // 3: covered world area
-                texture_entry(3, unfilterable),
-                // 4: vertices, 5: triangles, 6: materials
-                gpu::storage_entry(4, true, compute),
-                gpu::storage_entry(5, true, compute),
-                gpu::storage_entry(6, true, compute),
-                // 7: the band's texels, written
-                gpu::storage_entry(7, false, compute),
-            ],
-        });
+    let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("texelize_attributes"),
+        entries: &[
+            // 0: AttributeParams (atlas size, band rows)
+            gpu::uniform_entry(0, compute),
+            // 1: nearest triangle id + 1 per texel
+            texture_entry(1, wgpu::TextureSampleType::Uint),
+            // 2: barycentrics of corners b, c
+            texture_entry(2, unfilterable),
+            // 3: covered world area
+            texture_entry(3, unfilterable),
+            // 4: vertices, 5: triangles, 6: materials
+            gpu::storage_entry(4, true, compute),
+            gpu::storage_entry(5, true, compute),
+            gpu::storage_entry(6, true, compute),
+            // 7: the band's texels, written
+            gpu::storage_entry(7, false, compute),
+        ],
+    });
     let pipeline = gpu.compute_pipeline(Shader::TexelizeAttributes, "main", &[&layout]);
-    let views = [&targets.triangle, &targets.bary, &targets.area]
-        .map(|t| t.create_view(&Default::default()));
+    let views = [&targets.triangle, &targets.bary, &targets.area].map(|t| t.create_view(&Default::default()));
 
     let mut covered = Vec::new();
     let mut first_row = 0;
     while first_row < height {
         let rows = rows_per_band.min(height - first_row);
-        let params = gpu.uniform_buffer(
-            "texelize_attributes params",
-            &AttributeParams {
-                width,
-                height,
-                first_row,
-                rows,
-            },
-        );
+        let params =
+            gpu.uniform_buffer("texelize_attributes params", &AttributeParams { width, height, first_row, rows });
         let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("texelize_attributes"),
             layout: &layout,
             entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: params.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::TextureView(&views[0]),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: wgpu::BindingResource::TextureView(&views[1]),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: wgpu::BindingResource::TextureView(&views[2]),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: vertices.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 5,
-                    resource: triangles.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 6,
-                    resource: materials.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 7,
-                    resource: band.as_entire_binding(),
-                },
+                wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&views[0]) },
+                wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&views[1]) },
+                wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::TextureView(&views[2]) },
+                wgpu::BindGroupEntry { binding: 4, resource: vertices.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 5, resource: triangles.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 6, resource: materials.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 7, resource: band.as_entire_binding() },
             ],
         });
         let mut encoder = gpu.device.create_command_encoder(&Default::default());

@@ -81,18 +81,12 @@ pub fn inspect(meshes: &[MeshInput], atlas: &Atlas, gap_limit: u32) -> Quality {
     for (m, out) in meshes.iter().zip(&atlas.meshes) {
         malformed += missing(m.indices.len() / 3, out.indices.len() / 3);
         for t in out.indices.chunks_exact(3) {
-            let Some(v) = t
-                .iter()
-                .map(|&i| out.vertices.get(i as usize).copied())
-                .collect::<Option<Vec<_>>>()
-            else {
+            let Some(v) = t.iter().map(|&i| out.vertices.get(i as usize).copied()).collect::<Option<Vec<_>>>() else {
                 malformed += 1;
                 continue;
             };
             let in_range = |uv: [f32; 2]| uv.iter().all(|c| (0.0..=1.0).contains(c));
-            if v.iter()
-                .any(|x| !in_range(x.uv) || x.xref as usize >= m.positions.len())
-            {
+            if v.iter().any(|x| !in_range(x.uv) || x.xref as usize >= m.positions.len()) {
                 malformed += 1;
                 continue;
             }
@@ -126,9 +120,7 @@ pub fn inspect(meshes: &[MeshInput], atlas: &Atlas, gap_limit: u32) -> Quality {
                 weight += world;
             }
             if texels > 1e-9 {
-                let p = v
-                    .iter()
-                    .map(|x| [x.uv[0] as f64 * w as f64, x.uv[1] as f64 * h as f64]);
+                let p = v.iter().map(|x| [x.uv[0] as f64 * w as f64, x.uv[1] as f64 * h as f64]);
                 let p: Vec<[f64; 2]> = p.collect();
                 let p = [p[0], p[1], p[2]];
                 rasterize(p, w, h, |x, y| {
@@ -186,20 +178,9 @@ pub fn inspect(meshes: &[MeshInput], atlas: &Atlas, gap_limit: u32) -> Quality {
             min_border = Some(min_border.map_or(border, |b| b.min(border)));
             // Only texels on a chart's outline can be nearest to another chart.
             let interior = (y > 0 && y + 1 < h && x > 0 && x + 1 < w)
-                && [
-                    (-1i64, -1i64),
-                    (0, -1),
-                    (1, -1),
-                    (-1, 0),
-                    (1, 0),
-                    (-1, 1),
-                    (0, 1),
-                    (1, 1),
-                ]
-                .iter()
-                .all(|&(dx, dy)| {
-                    grid[(y as i64 + dy) as usize * w + (x as i64 + dx) as usize] == c
-                });
+                && [(-1i64, -1i64), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1)]
+                    .iter()
+                    .all(|&(dx, dy)| grid[(y as i64 + dy) as usize * w + (x as i64 + dx) as usize] == c);
             if interior {
                 continue;
             }
@@ -271,8 +252,7 @@ pub(crate) fn rasterize(p: [[f64; 2]; 3], w: usize, h: usize, mut f: impl FnMut(
 /// more than a small margin, so that triangles sharing an edge never both claim a centre.
 fn inside_centres(p: [[f64; 2]; 3], w: usize, h: usize, mut f: impl FnMut(usize, usize)) {
     const MARGIN: f64 = 1e-3;
-    let area2 =
-        (p[1][0] - p[0][0]) * (p[2][1] - p[0][1]) - (p[2][0] - p[0][0]) * (p[1][1] - p[0][1]);
+    let area2 = (p[1][0] - p[0][0]) * (p[2][1] - p[0][1]) - (p[2][0] - p[0][0]) * (p[1][1] - p[0][1]);
     if area2 == 0.0 || !area2.is_finite() {
         return;
     }
@@ -346,23 +326,15 @@ mod tests {
 
     /// An atlas of two unit right triangles (world) given their UVs and charts.
     fn atlas(uvs: [[[f32; 2]; 3]; 2], charts: [u32; 2], size: u32) -> Atlas {
-        let vertices = (0..6)
-            .map(|i| AtlasVertex {
-                xref: (i % 3) as u32,
-                uv: uvs[i / 3][i % 3],
-                chart: charts[i / 3],
-            })
-            .collect();
+        let vertices =
+            (0..6).map(|i| AtlasVertex { xref: (i % 3) as u32, uv: uvs[i / 3][i % 3], chart: charts[i / 3] }).collect();
         Atlas {
             width: size,
             height: size,
             texels_per_unit: 4.0,
             chart_count: charts.iter().max().unwrap() + 1,
             utilization: 0.0,
-            meshes: vec![UnwrappedMesh {
-                vertices,
-                indices: (0..6).collect(),
-            }],
+            meshes: vec![UnwrappedMesh { vertices, indices: (0..6).collect() }],
             notices: Vec::new(),
         }
     }
@@ -395,8 +367,7 @@ mod tests {
         let q = inspect(&mesh, &atlas([tri(2.0, 2.0), m], [0, 0], 32), 8);
         assert_eq!(q.flipped_triangles, 1);
         // Twice the density's area.
-        let big = [[2.0, 2.0], [2.0 + 5.657, 2.0], [2.0, 2.0 + 5.657]]
-            .map(|p| [p[0] / 32.0, p[1] / 32.0]);
+        let big = [[2.0, 2.0], [2.0 + 5.657, 2.0], [2.0, 2.0 + 5.657]].map(|p| [p[0] / 32.0, p[1] / 32.0]);
         let q = inspect(&mesh, &atlas([big, tri(20.0, 20.0)], [0, 1], 32), 8);
         assert!((q.max_chart_distortion - 2.0).abs() < 0.01, "{q:?}");
     }

@@ -66,9 +66,7 @@ impl<'a> MeshInput<'a> {
 ///
 /// xatlas makes fewer, larger charts on organic meshes (statue: 8 vs 19), hence fewer seams;
 /// it remains available for comparison.
-#[derive(
-    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
-)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Backend {
     /// xatlas (2019, C++ via `xatlas-rs`'s static library): charts, LSCM, random bitmap packing.
@@ -133,12 +131,7 @@ pub struct UnwrapOptions {
 
 impl Default for UnwrapOptions {
     fn default() -> Self {
-        UnwrapOptions {
-            backend: Backend::default(),
-            texels_per_unit: None,
-            max_atlas_size: 1024,
-            padding: 2,
-        }
+        UnwrapOptions { backend: Backend::default(), texels_per_unit: None, max_atlas_size: 1024, padding: 2 }
     }
 }
 
@@ -204,11 +197,7 @@ pub enum UnwrapError {
     InvalidIndexCount { mesh: usize, count: usize },
     /// An index refers to a vertex that doesn't exist.
     #[error("mesh {mesh}: index {index} out of range ({vertex_count} vertices)")]
-    IndexOutOfRange {
-        mesh: usize,
-        index: u32,
-        vertex_count: usize,
-    },
+    IndexOutOfRange { mesh: usize, index: u32, vertex_count: usize },
     /// A position is NaN or infinite.
     #[error("mesh {mesh}: vertex {vertex} has a non-finite position")]
     NonFinitePosition { mesh: usize, vertex: usize },
@@ -217,20 +206,13 @@ pub enum UnwrapError {
     TooLarge { mesh: usize, count: usize },
     /// An option is out of range.
     #[error("invalid unwrap option {option}: {requirement}")]
-    InvalidOption {
-        option: &'static str,
-        requirement: String,
-    },
+    InvalidOption { option: &'static str, requirement: String },
     /// The charts cannot share one page at any density: too many charts for the padding.
     #[error(
         "{charts} charts do not fit one {size}x{size} page with padding {padding} at any density; \
          raise max_atlas_size or lower padding"
     )]
-    DoesNotFit {
-        charts: u32,
-        size: u32,
-        padding: u32,
-    },
+    DoesNotFit { charts: u32, size: u32, padding: u32 },
 }
 
 /// Unwraps `meshes` onto one lightmap page (see the module documentation for conventions).
@@ -265,8 +247,7 @@ pub fn run(meshes: &[MeshInput], options: &UnwrapOptions) -> anyhow::Result<Atla
         let note = format!("{} produced an invalid atlas ({problem})", options.backend);
         match unwrap(other) {
             Ok(mut alt) if problems(meshes, &alt, options.padding).is_none() => {
-                alt.notices
-                    .insert(0, format!("{note}; used {other} instead"));
+                alt.notices.insert(0, format!("{note}; used {other} instead"));
                 atlas = alt;
             }
             // The other backend does no better: keep the first result, flagged.
@@ -332,23 +313,12 @@ fn validate(meshes: &[MeshInput], options: &UnwrapOptions) -> Result<(), UnwrapE
             return Err(UnwrapError::TooLarge { mesh: mi, count });
         }
         if !m.indices.len().is_multiple_of(3) {
-            return Err(UnwrapError::InvalidIndexCount {
-                mesh: mi,
-                count: m.indices.len(),
-            });
+            return Err(UnwrapError::InvalidIndexCount { mesh: mi, count: m.indices.len() });
         }
         if let Some(&index) = m.indices.iter().find(|&&i| i as usize >= m.positions.len()) {
-            return Err(UnwrapError::IndexOutOfRange {
-                mesh: mi,
-                index,
-                vertex_count: m.positions.len(),
-            });
+            return Err(UnwrapError::IndexOutOfRange { mesh: mi, index, vertex_count: m.positions.len() });
         }
-        if let Some(vertex) = m
-            .positions
-            .iter()
-            .position(|p| p.iter().any(|c| !c.is_finite()))
-        {
+        if let Some(vertex) = m.positions.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
             return Err(UnwrapError::NonFinitePosition { mesh: mi, vertex });
         }
     }
@@ -361,13 +331,7 @@ fn finish(meshes: &[MeshInput], atlas: &mut Atlas) {
     let mut area = 0.0f64;
     for out in &mut atlas.meshes {
         for v in &mut out.vertices {
-            v.uv = v.uv.map(|c| {
-                if c.is_finite() {
-                    c.clamp(0.0, 1.0)
-                } else {
-                    0.0
-                }
-            });
+            v.uv = v.uv.map(|c| if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 });
         }
         for t in out.indices.chunks_exact(3) {
             let [a, b, c] = [0, 1, 2].map(|k| out.vertices[t[k] as usize]);
@@ -377,16 +341,10 @@ fn finish(meshes: &[MeshInput], atlas: &mut Atlas) {
             area += check::uv_area(a.uv, b.uv, c.uv).abs();
         }
     }
-    atlas.utilization = if atlas.width > 0 && atlas.height > 0 {
-        area.min(1.0) as f32
-    } else {
-        0.0
-    };
+    atlas.utilization = if atlas.width > 0 && atlas.height > 0 { area.min(1.0) as f32 } else { 0.0 };
     if atlas.chart_count == 0 {
         let triangles: usize = meshes.iter().map(|m| m.indices.len() / 3).sum();
-        atlas.notices.push(format!(
-            "empty atlas: none of the {triangles} input triangles has surface area"
-        ));
+        atlas.notices.push(format!("empty atlas: none of the {triangles} input triangles has surface area"));
     }
 }
 
@@ -403,11 +361,7 @@ pub(crate) fn empty_atlas(meshes: &[MeshInput]) -> Atlas {
                 .iter()
                 .map(|&i| {
                     *map.entry(i).or_insert_with(|| {
-                        vertices.push(AtlasVertex {
-                            xref: i,
-                            uv: [0.0, 0.0],
-                            chart: u32::MAX,
-                        });
+                        vertices.push(AtlasVertex { xref: i, uv: [0.0, 0.0], chart: u32::MAX });
                         (vertices.len() - 1) as u32
                     })
                 })
@@ -415,15 +369,7 @@ pub(crate) fn empty_atlas(meshes: &[MeshInput]) -> Atlas {
             UnwrappedMesh { vertices, indices }
         })
         .collect();
-    Atlas {
-        width: 0,
-        height: 0,
-        texels_per_unit: 0.0,
-        chart_count: 0,
-        utilization: 0.0,
-        meshes,
-        notices: Vec::new(),
-    }
+    Atlas { width: 0, height: 0, texels_per_unit: 0.0, chart_count: 0, utilization: 0.0, meshes, notices: Vec::new() }
 }
 
 /// World-space area of a triangle, in m².
@@ -431,11 +377,7 @@ pub(crate) fn triangle_area(p: [[f32; 3]; 3]) -> f64 {
     let [a, b, c] = p.map(|v| v.map(f64::from));
     let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-    let n = [
-        u[1] * w[2] - u[2] * w[1],
-        u[2] * w[0] - u[0] * w[2],
-        u[0] * w[1] - u[1] * w[0],
-    ];
+    let n = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
     0.5 * (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt()
 }
 
@@ -443,11 +385,7 @@ pub(crate) fn triangle_area(p: [[f32; 3]; 3]) -> f64 {
 pub(crate) fn total_area(meshes: &[MeshInput]) -> f64 {
     meshes
         .iter()
-        .flat_map(|m| {
-            m.indices
-                .chunks_exact(3)
-                .map(|t| triangle_area([0, 1, 2].map(|k| m.positions[t[k] as usize])))
-        })
+        .flat_map(|m| m.indices.chunks_exact(3).map(|t| triangle_area([0, 1, 2].map(|k| m.positions[t[k] as usize]))))
         .sum()
 }
 
@@ -523,11 +461,7 @@ pub(crate) fn fit_density<T>(
         if fits(&t) {
             lo = s;
             let done = requested.is_some_and(|r| s >= r);
-            best = Some(Fitted {
-                density: s,
-                trial: t,
-                trials,
-            });
+            best = Some(Fitted { density: s, trial: t, trials });
             if done {
                 break;
             }
@@ -542,11 +476,7 @@ pub(crate) fn fit_density<T>(
         // bracket is still open.
         let guess = predicted * 0.995;
         next = if lo > 0.0 && hi.is_finite() {
-            if guess > lo * 1.002 && guess < hi / 1.002 {
-                guess
-            } else {
-                (lo * hi).sqrt()
-            }
+            if guess > lo * 1.002 && guess < hi / 1.002 { guess } else { (lo * hi).sqrt() }
         } else if lo > 0.0 {
             // Fits, no upper bound yet: grow towards the page edge, at least a little.
             guess.max(lo * 1.02)

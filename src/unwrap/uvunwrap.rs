@@ -9,33 +9,20 @@
 //! triangles in input order; deterministic for any thread count. Density fitting is its own
 //! `Density::Auto`, which bisects re-packings of charts parameterized once.
 
-use super::{
-    Atlas, AtlasVertex, MeshInput, UnwrapError, UnwrapOptions, UnwrappedMesh, empty_atlas,
-    fmt_density,
-};
+use super::{Atlas, AtlasVertex, MeshInput, UnwrapError, UnwrapOptions, UnwrappedMesh, empty_atlas, fmt_density};
 
 /// Unwraps with uvunwrap (input already validated).
 pub(super) fn unwrap(meshes: &[MeshInput], options: &UnwrapOptions) -> anyhow::Result<Atlas> {
     let size = options.max_atlas_size;
-    let inputs: Vec<uvunwrap::MeshInput> = meshes
-        .iter()
-        .map(|m| uvunwrap::MeshInput::new(m.positions, m.indices))
-        .collect();
-    let with = |density| uvunwrap::Options {
-        density,
-        padding: options.padding,
-        ..uvunwrap::Options::default()
-    };
+    let inputs: Vec<uvunwrap::MeshInput> =
+        meshes.iter().map(|m| uvunwrap::MeshInput::new(m.positions, m.indices)).collect();
+    let with = |density| uvunwrap::Options { density, padding: options.padding, ..uvunwrap::Options::default() };
     let generate = |density| uvunwrap::generate(&inputs, &with(density));
     let fits = |a: &uvunwrap::Atlas| a.page_count <= 1 && a.width <= size && a.height <= size;
     let auto = uvunwrap::Density::Auto { page_size: size };
 
     let lowered = |from: f64, to: f64| {
-        format!(
-            "density lowered from {} to {} texels/m to fit {size}²",
-            fmt_density(from),
-            fmt_density(to)
-        )
+        format!("density lowered from {} to {} texels/m to fit {size}²", fmt_density(from), fmt_density(to))
     };
     let mut notices = Vec::new();
     let atlas = match options.texels_per_unit {
@@ -47,10 +34,7 @@ pub(super) fn unwrap(meshes: &[MeshInput], options: &UnwrapOptions) -> anyhow::R
             let fixed = if hopeless {
                 None
             } else {
-                match generate(uvunwrap::Density::Fixed {
-                    texels_per_unit: t,
-                    page_size: None,
-                }) {
+                match generate(uvunwrap::Density::Fixed { texels_per_unit: t, page_size: None }) {
                     Ok(a) if fits(&a) => Some(a),
                     Ok(_) | Err(uvunwrap::Error::AtlasTooLarge { .. }) => None,
                     Err(e) => return Err(e.into()),
@@ -66,10 +50,7 @@ pub(super) fn unwrap(meshes: &[MeshInput], options: &UnwrapOptions) -> anyhow::R
                     } else {
                         // The growing page came out oddly shaped although the density fits a
                         // square page: pack at the requested density on one fixed page.
-                        match generate(uvunwrap::Density::Fixed {
-                            texels_per_unit: t,
-                            page_size: Some(size),
-                        }) {
+                        match generate(uvunwrap::Density::Fixed { texels_per_unit: t, page_size: Some(size) }) {
                             Ok(f) if fits(&f) => f,
                             _ => {
                                 notices.push(format!(
@@ -90,12 +71,7 @@ pub(super) fn unwrap(meshes: &[MeshInput], options: &UnwrapOptions) -> anyhow::R
         return Ok(empty_atlas(meshes));
     }
     if !fits(&atlas) {
-        return Err(UnwrapError::DoesNotFit {
-            charts: atlas.chart_count,
-            size,
-            padding: options.padding,
-        }
-        .into());
+        return Err(UnwrapError::DoesNotFit { charts: atlas.chart_count, size, padding: options.padding }.into());
     }
     let out = atlas
         .meshes
@@ -104,11 +80,7 @@ pub(super) fn unwrap(meshes: &[MeshInput], options: &UnwrapOptions) -> anyhow::R
             vertices: m
                 .vertices
                 .iter()
-                .map(|v| AtlasVertex {
-                    xref: v.xref,
-                    uv: v.uv,
-                    chart: v.chart.unwrap_or(u32::MAX),
-                })
+                .map(|v| AtlasVertex { xref: v.xref, uv: v.uv, chart: v.chart.unwrap_or(u32::MAX) })
                 .collect(),
             indices: m.indices.clone(),
         })

@@ -35,8 +35,8 @@ use anyhow::{Context, bail};
 
 use super::xatlas_ffi as ffi;
 use super::{
-    Atlas, AtlasVertex, MeshInput, Trial, UnwrapError, UnwrapOptions, UnwrappedMesh, empty_atlas,
-    fit_density, fmt_density,
+    Atlas, AtlasVertex, MeshInput, Trial, UnwrapError, UnwrapOptions, UnwrappedMesh, empty_atlas, fit_density,
+    fmt_density,
 };
 
 /// Switches xatlas' process-global printing off, once, before any atlas is created.
@@ -81,21 +81,12 @@ impl XAtlas {
         // SAFETY: Create has no preconditions; it aborts rather than return null on OOM, but
         // check anyway.
         let raw = unsafe { ffi::Create() };
-        XAtlas {
-            raw: NonNull::new(raw).expect("xatlas::Create returned null"),
-            meshes: 0,
-            charted: false,
-        }
+        XAtlas { raw: NonNull::new(raw).expect("xatlas::Create returned null"), meshes: 0, charted: false }
     }
 
     /// Adds a mesh: `positions` (any units), a triangle list `indices` (non-empty, a multiple of
     /// 3, each `< positions.len()`), and optional per-triangle ignore flags.
-    pub fn add_mesh(
-        &mut self,
-        positions: &[[f32; 3]],
-        indices: &[u32],
-        ignore: Option<&[bool]>,
-    ) -> anyhow::Result<()> {
+    pub fn add_mesh(&mut self, positions: &[[f32; 3]], indices: &[u32], ignore: Option<&[bool]>) -> anyhow::Result<()> {
         // Zero indices would make xatlas read the vertices as an unindexed triangle soup.
         if indices.is_empty() || !indices.len().is_multiple_of(3) {
             bail!("xatlas: invalid index count {}", indices.len());
@@ -103,11 +94,7 @@ impl XAtlas {
         if let Some(f) = ignore
             && f.len() != indices.len() / 3
         {
-            bail!(
-                "xatlas: {} ignore flags for {} faces",
-                f.len(),
-                indices.len() / 3
-            );
+            bail!("xatlas: {} ignore flags for {} faces", f.len(), indices.len() / 3);
         }
         let decl = ffi::MeshDecl {
             vertexCount: u32::try_from(positions.len()).context("too many vertices")?,
@@ -126,11 +113,7 @@ impl XAtlas {
         if error != ffi::ADD_MESH_SUCCESS {
             // SAFETY: StringForEnum returns a static NUL-terminated string for any value.
             let text = unsafe { std::ffi::CStr::from_ptr(ffi::StringForAddMeshError(error)) };
-            bail!(
-                "xatlas::AddMesh failed for mesh {}: {} (error {error})",
-                self.meshes,
-                text.to_string_lossy()
-            );
+            bail!("xatlas::AddMesh failed for mesh {}: {} (error {error})", self.meshes, text.to_string_lossy());
         }
         self.meshes += 1;
         Ok(())
@@ -204,11 +187,7 @@ impl XAtlas {
                     .collect(),
             })
             .collect();
-        Ok(Packed {
-            atlas_count: a.atlasCount,
-            chart_count: a.chartCount,
-            meshes,
-        })
+        Ok(Packed { atlas_count: a.atlasCount, chart_count: a.chartCount, meshes })
     }
 }
 
@@ -249,18 +228,11 @@ pub(super) fn unwrap(meshes: &[MeshInput], options: &UnwrapOptions) -> anyhow::R
     let half = (0..3).map(|k| 0.5 * (hi[k] - lo[k])).fold(0.0, f64::max);
     let centre: [f64; 3] = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]));
     // World metres to normalized units.
-    let scale = if half > 0.0 && half.is_finite() {
-        NORMALIZED_HALF_EXTENT / half
-    } else {
-        1.0
-    };
+    let scale = if half > 0.0 && half.is_finite() { NORMALIZED_HALF_EXTENT / half } else { 1.0 };
     let normalized: Vec<Vec<[f32; 3]>> = meshes
         .iter()
         .map(|m| {
-            m.positions
-                .iter()
-                .map(|p| std::array::from_fn(|k| ((p[k] as f64 - centre[k]) * scale) as f32))
-                .collect()
+            m.positions.iter().map(|p| std::array::from_fn(|k| ((p[k] as f64 - centre[k]) * scale) as f32)).collect()
         })
         .collect();
 
@@ -293,14 +265,7 @@ pub(super) fn unwrap(meshes: &[MeshInput], options: &UnwrapOptions) -> anyhow::R
             return Ok(Trial {
                 width: side,
                 height: side,
-                result: Page {
-                    packed: Packed {
-                        atlas_count: 0,
-                        chart_count: 0,
-                        meshes: Vec::new(),
-                    },
-                    shift: 0.0,
-                },
+                result: Page { packed: Packed { atlas_count: 0, chart_count: 0, meshes: Vec::new() }, shift: 0.0 },
             });
         }
         let packed = xa.pack(ffi::PackOptions {
@@ -332,23 +297,17 @@ pub(super) fn unwrap(meshes: &[MeshInput], options: &UnwrapOptions) -> anyhow::R
             }
         }
         let side = |max: f32| (max.ceil() as u32).saturating_add(pad).max(1);
-        Ok(Trial {
-            width: side(max_u),
-            height: side(max_v),
-            result: Page { packed, shift },
-        })
+        Ok(Trial { width: side(max_u), height: side(max_v), result: Page { packed, shift } })
     };
 
     let requested = options.texels_per_unit.map(|t| t as f64 / scale);
     // xatlas' own estimate assumes 75% utilization; padding lowers it.
     let estimate = (0.6 * (size as f64).powi(2) / area_n).sqrt();
-    let fitted = fit_density(|d| pack(&mut xa, d), requested, estimate, size)?.ok_or(
-        UnwrapError::DoesNotFit {
-            charts: xa.chart_count(),
-            size,
-            padding: pad,
-        },
-    )?;
+    let fitted = fit_density(|d| pack(&mut xa, d), requested, estimate, size)?.ok_or(UnwrapError::DoesNotFit {
+        charts: xa.chart_count(),
+        size,
+        padding: pad,
+    })?;
     let density = fitted.density * scale;
     let mut notices = Vec::new();
     if let Some(t) = options.texels_per_unit
@@ -360,11 +319,7 @@ pub(super) fn unwrap(meshes: &[MeshInput], options: &UnwrapOptions) -> anyhow::R
             fmt_density(density)
         ));
     }
-    let Trial {
-        width,
-        height,
-        result: page,
-    } = fitted.trial;
+    let Trial { width, height, result: page } = fitted.trial;
     let out = convert(meshes, &added, &page, width, height);
     Ok(Atlas {
         width,
@@ -379,13 +334,7 @@ pub(super) fn unwrap(meshes: &[MeshInput], options: &UnwrapOptions) -> anyhow::R
 
 /// Converts xatlas' meshes to ours: normalized UVs, global chart ids, ignored faces collapsed
 /// onto a neighbouring UV.
-fn convert(
-    meshes: &[MeshInput],
-    added: &[usize],
-    page: &Page,
-    width: u32,
-    height: u32,
-) -> Vec<UnwrappedMesh> {
+fn convert(meshes: &[MeshInput], added: &[usize], page: &Page, width: u32, height: u32) -> Vec<UnwrappedMesh> {
     let mut out = vec![UnwrappedMesh::default(); meshes.len()];
     let mut chart_base = 0u32;
     let (w, h) = (width as f32, height as f32);
@@ -424,11 +373,7 @@ fn convert(
         let mut indices = Vec::with_capacity(pm.indices.len());
         let mut collapsed: HashMap<(u32, u32), u32> = HashMap::new();
         for tri in pm.indices.chunks_exact(3) {
-            let charted = tri.iter().all(|&i| {
-                vertices
-                    .get(i as usize)
-                    .is_some_and(|v| v.chart != u32::MAX)
-            });
+            let charted = tri.iter().all(|&i| vertices.get(i as usize).is_some_and(|v| v.chart != u32::MAX));
             if charted {
                 indices.extend_from_slice(tri);
                 continue;
@@ -466,10 +411,7 @@ fn convert(
             }
             *i = *slot;
         }
-        out[mi] = UnwrappedMesh {
-            vertices: kept,
-            indices,
-        };
+        out[mi] = UnwrappedMesh { vertices: kept, indices };
     }
     out
 }

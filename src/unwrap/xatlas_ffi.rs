@@ -204,8 +204,7 @@ impl Default for PackOptions {
 }
 
 /// `xatlas::ProgressFunc`.
-pub type ProgressFunc =
-    Option<unsafe extern "C" fn(category: ProgressCategory, progress: c_int, user: *mut c_void)>;
+pub type ProgressFunc = Option<unsafe extern "C" fn(category: ProgressCategory, progress: c_int, user: *mut c_void)>;
 
 /// `xatlas::ParameterizeFunc`.
 pub type ParameterizeFunc = Option<
@@ -237,30 +236,15 @@ unsafe extern "C" {
 
     /// `xatlas::ComputeCharts(Atlas*, ChartOptions, ProgressFunc, void*)`.
     #[link_name = "_ZN6xatlas13ComputeChartsEPNS_5AtlasENS_12ChartOptionsEPFvNS_16ProgressCategory4EnumEiPvES5_"]
-    pub fn ComputeCharts(
-        atlas: *mut Atlas,
-        options: ChartOptions,
-        progress: ProgressFunc,
-        user: *mut c_void,
-    );
+    pub fn ComputeCharts(atlas: *mut Atlas, options: ChartOptions, progress: ProgressFunc, user: *mut c_void);
 
     /// `xatlas::ParameterizeCharts(Atlas*, ParameterizeFunc, ProgressFunc, void*)`.
     #[link_name = "_ZN6xatlas18ParameterizeChartsEPNS_5AtlasEPFvPKfPfjPKjjbEPFvNS_16ProgressCategory4EnumEiPvESB_"]
-    pub fn ParameterizeCharts(
-        atlas: *mut Atlas,
-        func: ParameterizeFunc,
-        progress: ProgressFunc,
-        user: *mut c_void,
-    );
+    pub fn ParameterizeCharts(atlas: *mut Atlas, func: ParameterizeFunc, progress: ProgressFunc, user: *mut c_void);
 
     /// `xatlas::PackCharts(Atlas*, PackOptions, ProgressFunc, void*)`.
     #[link_name = "_ZN6xatlas10PackChartsEPNS_5AtlasENS_11PackOptionsEPFvNS_16ProgressCategory4EnumEiPvES5_"]
-    pub fn PackCharts(
-        atlas: *mut Atlas,
-        options: PackOptions,
-        progress: ProgressFunc,
-        user: *mut c_void,
-    );
+    pub fn PackCharts(atlas: *mut Atlas, options: PackOptions, progress: ProgressFunc, user: *mut c_void);
 
     /// `xatlas::Generate(Atlas*, ChartOptions, ParameterizeFunc, PackOptions, ProgressFunc, void*)`.
     #[link_name = "_ZN6xatlas8GenerateEPNS_5AtlasENS_12ChartOptionsEPFvPKfPfjPKjjbENS_11PackOptionsEPFvNS_16ProgressCategory4EnumEiPvESD_"]

@@ -22,9 +22,7 @@ pub fn gpu() -> Gpu {
 /// Imports a fixture scene from its in-memory GLB.
 pub fn scene(builder: &SceneBuilder, name: &str) -> bake::scene::Scene {
     let glb = builder.to_glb();
-    let source =
-        bake::asset::SourceAsset::from_bytes(Path::new(&format!("{name}.glb")), &glb, None)
-            .unwrap();
+    let source = bake::asset::SourceAsset::from_bytes(Path::new(&format!("{name}.glb")), &glb, None).unwrap();
     bake::import::from_asset(source).unwrap()
 }
 
@@ -41,30 +39,16 @@ pub fn lights(map: &EnvironmentMap, mode: LightMode) -> LightSet {
 
 /// Bakes `builder` under `lights` and checks the invariants every bake must keep.
 pub fn bake(gpu: &Gpu, builder: &SceneBuilder, lights: &LightSet, options: &BakeOptions) -> Baked {
-    let baked = bake::bake_scene(
-        gpu,
-        scene(builder, "test"),
-        Some(lights),
-        options,
-        &mut Silent,
-    )
-    .unwrap();
+    let baked = bake::bake_scene(gpu, scene(builder, "test"), Some(lights), options, &mut Silent).unwrap();
     assert_valid(&baked);
     baked
 }
 
 /// Every texel finite and non-negative, every texel inside the atlas.
 pub fn assert_valid(baked: &Baked) {
-    assert!(
-        !baked.texels.texels.is_empty(),
-        "the bake covered no texels"
-    );
+    assert!(!baked.texels.texels.is_empty(), "the bake covered no texels");
     for (texel, value) in baked.texels.texels.iter().zip(&baked.solution.lightmap) {
-        assert!(
-            value.iter().all(|c| c.is_finite() && *c >= 0.0),
-            "texel {} has value {value:?}",
-            texel.index
-        );
+        assert!(value.iter().all(|c| c.is_finite() && *c >= 0.0), "texel {} has value {value:?}", texel.index);
         assert!(texel.index < baked.texels.width * baked.texels.height);
     }
 }
