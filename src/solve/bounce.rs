@@ -197,6 +197,7 @@ pub fn run(
         .zip(&unshot)
         .map(|(t, u)| luminance([u[0] as f64, u[1] as f64, u[2] as f64]) * t.area as f64)
         .sum::<f64>();
+    let initial_closure = coverage.map(|c| covered_share(texels, &unshot, c));
     let total_area: f64 = texels.total_area();
     let mean_albedo = {
         let mut sum = [0.0f64; 3];
@@ -271,7 +272,7 @@ pub fn run(
         last = stats;
         let unshot_power = stats.unshot[3] as f64;
         let unshot_fraction = if power_in > 0.0 { unshot_power / power_in } else { 0.0 };
-        let closure = if shot_total > 0.0 { (received_total / shot_total).min(1.0) } else { 1.0 };
+        let closure = initial_closure.unwrap_or_else(|| measured_closure(received_total, shot_total));
         let ambient = ambient_term(stats.unshot, closure, mean_albedo, total_area);
         let error_estimate = if gathered > 0.0 { luminance(ambient) * total_area / gathered } else { 0.0 };
         trace.push(TracePoint { seconds: start.elapsed().as_secs_f64(), shots, unshot_fraction, error_estimate });
@@ -313,17 +314,8 @@ pub fn run(
     // texel's hemisphere (from the direct pass), weighted by its unshot power;
     // without a direct pass, the share measured over the shots taken.
     let closure = match coverage {
-        Some(coverage) => {
-            let (mut covered, mut total) = (0.0f64, 0.0f64);
-            for ((t, u), c) in texels.texels.iter().zip(&remaining).zip(coverage) {
-                let power = luminance([u[0] as f64, u[1] as f64, u[2] as f64]) * t.area as f64;
-                covered += power * *c as f64;
-                total += power;
-            }
-            if total > 0.0 { covered / total } else { 0.0 }
-        }
-        None if shot_total > 0.0 => (received_total / shot_total).min(1.0),
-        None => 1.0,
+        Some(coverage) => covered_share(texels, &remaining, coverage),
+        None => measured_closure(received_total, shot_total),
     };
     let ambient = ambient_term(last.unshot, closure, mean_albedo, total_area).map(|a| a as f32);
     for (out, v) in lightmap.iter_mut().zip(values) {
@@ -341,6 +333,24 @@ pub fn run(
         ambient,
         trace,
     })
+}
+
+/// The share of `unshot` power that would land on the scene: each texel's
+/// covered share of its hemisphere, weighted by its unshot power.
+fn covered_share(texels: &TexelSet, unshot: &[[f32; 4]], coverage: &[f32]) -> f64 {
+    let (mut covered, mut total) = (0.0f64, 0.0f64);
+    for ((t, u), c) in texels.texels.iter().zip(unshot).zip(coverage) {
+        let power = luminance([u[0] as f64, u[1] as f64, u[2] as f64]) * t.area as f64;
+        covered += power * *c as f64;
+        total += power;
+    }
+    if total > 0.0 { covered / total } else { 0.0 }
+}
+
+/// The share of shot power that landed on the scene so far (1 before any
+/// shot: a closed room is the cautious guess).
+fn measured_closure(received: f64, shot: f64) -> f64 {
+    if shot > 0.0 { (received / shot).min(1.0) } else { 1.0 }
 }
 
 /// The light still unshot, spread evenly over the scene as incident
