@@ -109,7 +109,12 @@ pub fn bake_scene(
         })?;
         let mut parts = Vec::new();
         if let Some(d) = &solution.direct {
-            parts.push(format!("{} lights × {} texels, shadow maps {}²", d.lights, texels.texels.len(), d.shadow_map_size));
+            parts.push(format!(
+                "{} lights × {} texels, shadow maps {}²",
+                d.lights,
+                texels.texels.len(),
+                d.shadow_map_size
+            ));
         }
         if let Some(b) = &solution.bounce {
             parts.push(format!(

@@ -157,3 +157,37 @@ fn help_explains_every_option() {
         assert!(help.contains(option), "--help does not mention {option}");
     }
 }
+
+#[test]
+fn a_scene_lit_only_by_emitters_bakes_without_an_environment() {
+    use bake::fixtures::{MeshData, Placement, SceneBuilder};
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene = SceneBuilder::new();
+    scene.object("room", &MeshData::room([4.0, 3.0, 4.0]), [0.7, 0.7, 0.7, 1.0], [0.0; 3], Placement::default());
+    scene.object(
+        "lamp",
+        &MeshData::plane(1.0, 1.0, 1),
+        [0.0, 0.0, 0.0, 1.0],
+        [20.0, 18.0, 15.0],
+        Placement::at(glam::Vec3::new(0.0, 1.45, 0.0)).rotated(glam::Quat::from_rotation_x(std::f32::consts::PI)),
+    );
+    std::fs::write(dir.path().join("lamp_room.glb"), scene.to_glb()).unwrap();
+    let output = bake(dir.path(), &["lamp_room.glb", "-o", "out", "--max-atlas-size", "64", "-q"]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let report: Report = serde_json::from_slice(&std::fs::read(dir.path().join("out/report.json")).unwrap()).unwrap();
+    let scene = &report.scenes[0];
+    assert!(scene.skipped.iter().any(|s| s.pass == "direct"), "the direct pass is reported as left out");
+    let bounce = scene.bounce.as_ref().expect("the emitters were shot");
+    assert!(bounce.shots > 0 && !bounce.trace.is_empty());
+    let room = &scene.energy[0];
+    assert!(room.mean_lightmap[0] > 0.1 && room.mean_lightmap[0] > room.mean_lightmap[2], "{:?}", room.mean_lightmap);
+}
+
+#[test]
+fn nothing_to_light_the_scene_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture("sphere_on_ground.glb");
+    let output = bake(dir.path(), &[input.to_str().unwrap(), "-o", "out", "-q"]);
+    assert_one_line_error(&output, "nothing lights the scene");
+    assert!(!dir.path().join("out").exists());
+}
