@@ -6,14 +6,13 @@
 
 @group(0) @binding(0) var<uniform> params: BounceParams;
 @group(0) @binding(1) var<storage, read> shooters: array<Shooter>;
-
-struct VsOut {
-    @builtin(position) clip: vec4f,
-    @location(0) local: vec3f,
-}
+@group(0) @binding(2) var<storage, read> materials: array<Material>;
+@group(0) @binding(3) var textures: texture_2d_array<f32>;
+@group(0) @binding(4) var texture_sampler: sampler;
 
 @vertex
-fn vs_hemicube(@location(0) position: vec3f, @builtin(instance_index) instance: u32) -> VsOut {
+fn vs_hemicube(in: CasterIn, @builtin(instance_index) instance: u32) -> CasterOut {
+    let position = in.position;
     let shooter = shooters[instance / 5u];
     let face = instance % 5u;
     let m = basis(shooter.normal);
@@ -29,14 +28,29 @@ fn vs_hemicube(@location(0) position: vec3f, @builtin(instance_index) instance: 
         case 3u: { w = local.y; x = local.x; y = 2.0 * local.z - w; }
         default: { w = -local.y; x = local.x; y = 2.0 * local.z - w; }
     }
-    var out: VsOut;
+    var out: CasterOut;
     // z = w − near keeps 0 ≤ z ≤ w exactly for points in front of the near plane.
     out.clip = vec4f(x, y, w - params.near, w);
     out.local = local;
+    out.material = in.material;
+    out.uv0 = in.uv0;
+    out.uv1 = in.uv1;
     return out;
 }
 
 @fragment
-fn fs_hemicube(in: VsOut) -> @builtin(frag_depth) f32 {
+fn fs_hemicube(in: CasterOut) -> @builtin(frag_depth) f32 {
+    return clamp(length(in.local) / params.far, 0.0, 1.0);
+}
+
+// Alpha-MASK triangles: cut-out fragments let light through.
+@fragment
+fn fs_hemicube_masked(in: CasterOut) -> @builtin(frag_depth) f32 {
+    let m = materials[in.material];
+    let uv = texture_coordinates(m.base_texture, in.uv0, in.uv1);
+    let alpha = m.base_color.a * sample_texture_grad(textures, texture_sampler, m.base_texture, uv, dpdx(uv), dpdy(uv)).a;
+    if (alpha < m.emission.w) {
+        discard;
+    }
     return clamp(length(in.local) / params.far, 0.0, 1.0);
 }

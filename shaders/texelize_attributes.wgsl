@@ -15,7 +15,7 @@ struct Vertex {
     normal: vec3f,   // zero when the primitive has no normals (flat shading)
     _pad1: f32,
     uv0: vec2f,
-    _pad2: vec2f,
+    uv1: vec2f,  // the source's own TEXCOORD_1, for textures that read it
 }
 
 struct Triangle {
@@ -23,11 +23,6 @@ struct Triangle {
     material: u32,
     face_normal: vec3f,  // from the winding, world space; zero if degenerate
     _pad: u32,
-}
-
-struct Material {
-    base_color: vec4f,
-    emission: vec4f,
 }
 
 @group(0) @binding(0) var<uniform> params: AttributeParams;
@@ -39,6 +34,30 @@ struct Material {
 @group(0) @binding(6) var<storage, read> materials: array<Material>;
 // One entry per texel of the band, row-major.
 @group(0) @binding(7) var<storage, read_write> texels: array<Texel>;
+// Lightmap-space corners of each triangle (texel units), for the footprint.
+@group(0) @binding(8) var<storage, read> corners: array<vec2f>;
+@group(0) @binding(9) var textures: texture_2d_array<f32>;
+@group(0) @binding(10) var texture_sampler: sampler;
+
+// The mip level at which texture `t` shows the footprint of one lightmap
+// texel of triangle `t_index`: the texel averages what it covers.
+fn footprint_lod(t: TextureRef, t_index: u32, va: Vertex, vb: Vertex, vc: Vertex) -> f32 {
+    let a = corners[3u * t_index];
+    let e1 = corners[3u * t_index + 1u] - a;
+    let e2 = corners[3u * t_index + 2u] - a;
+    let det = e1.x * e2.y - e1.y * e2.x;
+    if (abs(det) < 1e-12) {
+        return 0.0;
+    }
+    let ta = texture_coordinates(t, va.uv0, va.uv1);
+    let f1 = texture_coordinates(t, vb.uv0, vb.uv1) - ta;
+    let f2 = texture_coordinates(t, vc.uv0, vc.uv1) - ta;
+    // J = [f1 f2] · [e1 e2]⁻¹ maps one atlas texel step to texture coordinates.
+    let dx = (f1 * e2.y - f2 * e1.y) / det;
+    let dy = (f2 * e1.x - f1 * e2.x) / det;
+    let size = f32(textureDimensions(textures).x);
+    return log2(max(max(length(dx), length(dy)) * size, 1e-6));
+}
 
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -83,12 +102,22 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 
     let material = materials[tri.material];
+    let uv0 = w.x * va.uv0 + w.y * vb.uv0 + w.z * vc.uv0;
+    let uv1 = w.x * va.uv1 + w.y * vb.uv1 + w.z * vc.uv1;
+    let base_uv = texture_coordinates(material.base_texture, uv0, uv1);
+    let base = material.base_color * sample_texture(
+        textures, texture_sampler, material.base_texture, base_uv,
+        footprint_lod(material.base_texture, t, va, vb, vc));
+    let emissive_uv = texture_coordinates(material.emissive_texture, uv0, uv1);
+    let emissive = sample_texture(
+        textures, texture_sampler, material.emissive_texture, emissive_uv,
+        footprint_lod(material.emissive_texture, t, va, vb, vc));
     texel.position = w.x * va.position + w.y * vb.position + w.z * vc.position;
     texel.area = textureLoad(areas, vec2<u32>(x, y), 0).x;
     texel.normal = normal;
     texel.face_normal = face;
     texel.triangle = t;
-    texel.albedo = material.base_color.rgb;
-    texel.emission = material.emission.rgb;
+    texel.albedo = clamp(base.rgb, vec3f(0.0), vec3f(1.0));
+    texel.emission = max(material.emission.rgb * emissive.rgb, vec3f(0.0));
     texels[slot] = texel;
 }

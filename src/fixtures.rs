@@ -138,6 +138,9 @@ pub struct SceneBuilder {
     meshes: Vec<Value>,
     materials: Vec<Value>,
     nodes: Vec<Value>,
+    images: Vec<Value>,
+    textures: Vec<Value>,
+    samplers: Vec<Value>,
 }
 
 impl SceneBuilder {
@@ -247,10 +250,63 @@ impl SceneBuilder {
         self.node(name, mesh, placement)
     }
 
+    /// Adds an sRGB RGBA image as an embedded PNG texture with the given
+    /// wrap mode (glTF code) for both axes; returns the texture index.
+    pub fn png_texture(&mut self, image: &image::RgbaImage, wrap: u32) -> usize {
+        let mut png = Vec::new();
+        image::ImageEncoder::write_image(
+            image::codecs::png::PngEncoder::new(&mut png),
+            image.as_raw(),
+            image.width(),
+            image.height(),
+            image::ExtendedColorType::Rgba8,
+        )
+        .expect("PNG encodes");
+        let view = self.push_view(&png, None);
+        self.images.push(json!({ "bufferView": view, "mimeType": "image/png" }));
+        self.samplers.push(json!({ "magFilter": 9729, "minFilter": 9987, "wrapS": wrap, "wrapT": wrap }));
+        self.textures.push(json!({ "source": self.images.len() - 1, "sampler": self.samplers.len() - 1 }));
+        self.textures.len() - 1
+    }
+
+    /// Multiplies `material`'s base colour by `texture` through TEXCOORD_0,
+    /// optionally with a KHR_texture_transform object.
+    pub fn base_color_texture(&mut self, material: usize, texture: usize, transform: Option<Value>) {
+        let mut info = json!({ "index": texture });
+        if let Some(transform) = transform {
+            info["extensions"] = json!({ "KHR_texture_transform": transform });
+        }
+        self.materials[material]["pbrMetallicRoughness"]["baseColorTexture"] = info;
+    }
+
+    /// Sets `material`'s emitted radiance (linear RGB, any magnitude).
+    pub fn set_emission(&mut self, material: usize, emission: [f32; 3]) {
+        let strength = emission.iter().cloned().fold(1.0f32, f32::max);
+        self.materials[material]["emissiveFactor"] = json!(emission.map(|e| e / strength));
+        if strength > 1.0 {
+            self.materials[material]["extensions"] =
+                json!({ "KHR_materials_emissive_strength": { "emissiveStrength": strength } });
+        }
+    }
+
+    /// Multiplies `material`'s emission by `texture` through TEXCOORD_0.
+    pub fn emissive_texture(&mut self, material: usize, texture: usize) {
+        self.materials[material]["emissiveTexture"] = json!({ "index": texture });
+    }
+
+    /// Makes `material` an alpha cut-out (alphaMode MASK) at `cutoff`.
+    pub fn alpha_mask(&mut self, material: usize, cutoff: f32) {
+        self.materials[material]["alphaMode"] = json!("MASK");
+        self.materials[material]["alphaCutoff"] = json!(cutoff);
+    }
+
     fn document(&self) -> Value {
         let mut extensions_used = Vec::new();
         if self.materials.iter().any(|m| m.get("extensions").is_some()) {
             extensions_used.push("KHR_materials_emissive_strength");
+        }
+        if self.materials.iter().any(|m| m.pointer("/pbrMetallicRoughness/baseColorTexture/extensions").is_some()) {
+            extensions_used.push("KHR_texture_transform");
         }
         let mut doc = json!({
             "asset": { "version": "2.0", "generator": "bake fixtures" },
@@ -265,6 +321,11 @@ impl SceneBuilder {
         });
         if !extensions_used.is_empty() {
             doc["extensionsUsed"] = json!(extensions_used);
+        }
+        if !self.images.is_empty() {
+            doc["images"] = json!(self.images);
+            doc["textures"] = json!(self.textures);
+            doc["samplers"] = json!(self.samplers);
         }
         doc
     }

@@ -11,7 +11,7 @@ use glam::{Mat3, Mat4, Vec3};
 use gltf::mesh::Mode;
 
 use crate::asset::{SourceAsset, accessor};
-use crate::scene::{Material, Scene, ScenePrimitive};
+use crate::scene::{AlphaMode, LinearImage, Material, Scene, ScenePrimitive, TextureRef};
 
 /// Loads `path` (`.gltf` or `.glb`) into a `Scene`. Errors name the file.
 pub fn load(path: &Path) -> Result<Scene> {
@@ -49,7 +49,20 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
         bail!("the scene has no triangle geometry to bake");
     }
 
-    let materials = document.materials().map(material).collect();
+    let materials: Vec<Material> = document.materials().map(material).collect();
+    let mut used: Vec<usize> = primitives.iter().filter_map(|p| p.material).collect();
+    used.sort();
+    used.dedup();
+    for &m in &used {
+        if materials[m].alpha == AlphaMode::Blend {
+            let name = materials[m].name.as_deref().unwrap_or("unnamed");
+            notices.push(format!(
+                "material {m} '{name}' is alpha-blended: baked as opaque (only MASK cut-outs let light through)"
+            ));
+        }
+    }
+    let (images, image_notices) = decode_images(&source, &materials, &used);
+    notices.extend(image_notices);
     let lights = source.json.pointer("/extensions/KHR_lights_punctual/lights").and_then(|l| l.as_array());
     if let Some(lights) = lights.filter(|l| !l.is_empty()) {
         notices.push(format!(
@@ -59,7 +72,7 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
         ));
     }
     let name = source.path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "scene".into());
-    Ok(Scene { name, source, primitives, materials, notices })
+    Ok(Scene { name, source, primitives, materials, images, notices })
 }
 
 fn describe(node: &gltf::Node, mesh: &gltf::Mesh) -> String {
@@ -138,6 +151,16 @@ fn collect_mesh(
                 }
                 None => None,
             };
+            let uv1 = match primitive.get(&gltf::Semantic::TexCoords(1)) {
+                Some(a) => {
+                    let uv = accessor::read_vectors::<2>(source, &a)?;
+                    if uv.len() != count {
+                        bail!("TEXCOORD_1 has {} entries for {count} positions", uv.len());
+                    }
+                    Some(uv)
+                }
+                None => None,
+            };
             let drawn = match primitive.indices() {
                 Some(a) => accessor::read_indices(source, &a)?,
                 None => (0..count as u32).collect(),
@@ -153,6 +176,7 @@ fn collect_mesh(
                 positions,
                 normals,
                 uv0,
+                uv1,
                 indices,
                 mirrored,
                 material: primitive.material().index(),
@@ -187,8 +211,93 @@ fn material(m: gltf::Material) -> Material {
     Material {
         name: m.name().map(str::to_string),
         base_color: m.pbr_metallic_roughness().base_color_factor(),
+        base_color_texture: m.pbr_metallic_roughness().base_color_texture().map(|info| texture_ref(&info)),
         emission: m.emissive_factor().map(|e| e * strength),
+        emissive_texture: m.emissive_texture().map(|info| texture_ref(&info)),
+        alpha: match m.alpha_mode() {
+            gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
+            gltf::material::AlphaMode::Mask => AlphaMode::Mask(m.alpha_cutoff().unwrap_or(0.5)),
+            gltf::material::AlphaMode::Blend => AlphaMode::Blend,
+        },
         double_sided: m.double_sided(),
+    }
+}
+
+/// A texture reference with KHR_texture_transform folded into one affine map:
+/// uv' = T · R · S · uv (the extension's order), R turning by `rotation`
+/// as the extension's reference code does.
+fn texture_ref(info: &gltf::texture::Info) -> TextureRef {
+    let sampler = info.texture().sampler();
+    let wrap = [sampler.wrap_s().as_gl_enum(), sampler.wrap_t().as_gl_enum()];
+    let mut tex_coord = info.tex_coord();
+    let mut transform = TextureRef::IDENTITY;
+    if let Some(t) = info.texture_transform() {
+        let [ox, oy] = t.offset();
+        let [sx, sy] = t.scale();
+        let (sin, cos) = t.rotation().sin_cos();
+        transform = [[cos * sx, -sin * sy, ox], [sin * sx, cos * sy, oy]];
+        if let Some(set) = t.tex_coord() {
+            tex_coord = set;
+        }
+    }
+    TextureRef { image: info.texture().source().index(), tex_coord, transform, wrap }
+}
+
+/// Decodes every image a baked primitive's material samples, into linear
+/// RGB (from sRGB, as glTF stores colour textures) and linear alpha.
+fn decode_images(
+    source: &SourceAsset,
+    scene_materials: &[Material],
+    used: &[usize],
+) -> (Vec<Option<LinearImage>>, Vec<String>) {
+    let mut notices = Vec::new();
+    let mut wanted = vec![false; source.document.images().len()];
+    for &m in used {
+        let material = &scene_materials[m];
+        for texture in [&material.base_color_texture, &material.emissive_texture].into_iter().flatten() {
+            if let Some(w) = wanted.get_mut(texture.image) {
+                *w = true;
+            }
+        }
+    }
+    let images = wanted
+        .iter()
+        .enumerate()
+        .map(|(i, &wanted)| {
+            if !wanted {
+                return None;
+            }
+            let decoded = source
+                .image_bytes(i)
+                .and_then(|(bytes, _)| image::load_from_memory(&bytes).map_err(|e| anyhow!("{e}")));
+            match decoded {
+                Ok(image) => Some(linear_image(&image.to_rgba8())),
+                Err(e) => {
+                    notices.push(format!(
+                        "image {i} could not be decoded ({e:#}): its material is baked with its colour factors alone"
+                    ));
+                    None
+                }
+            }
+        })
+        .collect();
+    (images, notices)
+}
+
+fn linear_image(rgba: &image::RgbaImage) -> LinearImage {
+    let lut: Vec<f32> = (0..256)
+        .map(|v| {
+            let c = v as f32 / 255.0;
+            if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+        })
+        .collect();
+    LinearImage {
+        width: rgba.width(),
+        height: rgba.height(),
+        pixels: rgba
+            .pixels()
+            .map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize], p[3] as f32 / 255.0])
+            .collect(),
     }
 }
 

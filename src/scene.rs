@@ -22,6 +22,9 @@ pub struct ScenePrimitive {
     pub normals: Option<Vec<[f32; 3]>>,
     /// TEXCOORD_0, one per source vertex, if present.
     pub uv0: Option<Vec<[f32; 2]>>,
+    /// The source's own TEXCOORD_1, if present (textures may sample it; the
+    /// lightmap UVs replace it in the output).
+    pub uv1: Option<Vec<[f32; 2]>>,
     /// Triangle list in source vertex numbering (strips and fans converted),
     /// in the source's winding.
     pub indices: Vec<u32>,
@@ -47,23 +50,72 @@ impl ScenePrimitive {
     }
 }
 
+/// A texture a material samples.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TextureRef {
+    /// Index of the glTF image (into `Scene::images`).
+    pub image: usize,
+    /// Which TEXCOORD_n set it reads (0 or 1; KHR_texture_transform's override applied).
+    pub tex_coord: u32,
+    /// uv' = M · (u, v, 1) with M = [[a, b, c], [d, e, f]]: KHR_texture_transform's
+    /// translation · rotation · scale, the identity without it.
+    pub transform: [[f32; 3]; 2],
+    /// Sampler wrap modes for u and v (glTF codes: 33071 clamp, 33648 mirror, 10497 repeat).
+    pub wrap: [u32; 2],
+}
+
+impl TextureRef {
+    pub const IDENTITY: [[f32; 3]; 2] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+}
+
+/// How a material's alpha is used (glTF `alphaMode`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AlphaMode {
+    Opaque,
+    /// Cut out where alpha < cutoff: light passes there.
+    Mask(f32),
+    /// Blended transparency: baked as opaque (with a notice).
+    Blend,
+}
+
 /// What a surface does with light, in linear RGB.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
     pub name: Option<String>,
     /// baseColorFactor RGB (diffuse albedo) and alpha.
     pub base_color: [f32; 4],
+    /// Multiplies `base_color`, sampled through its UV set.
+    pub base_color_texture: Option<TextureRef>,
     /// emissiveFactor × KHR_materials_emissive_strength, radiance in the
     /// scene's units (W·sr⁻¹·m⁻² up to the environment's scale).
     pub emission: [f32; 3],
+    /// Multiplies `emission`.
+    pub emissive_texture: Option<TextureRef>,
+    pub alpha: AlphaMode,
     pub double_sided: bool,
 }
 
 impl Default for Material {
-    /// glTF's default material: white, not emissive, single-sided.
+    /// glTF's default material: white, not emissive, opaque, single-sided.
     fn default() -> Self {
-        Material { name: None, base_color: [1.0; 4], emission: [0.0; 3], double_sided: false }
+        Material {
+            name: None,
+            base_color: [1.0; 4],
+            base_color_texture: None,
+            emission: [0.0; 3],
+            emissive_texture: None,
+            alpha: AlphaMode::Opaque,
+            double_sided: false,
+        }
     }
+}
+
+/// A decoded texture in linear RGB with linear alpha, row 0 at the top.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LinearImage {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<[f32; 4]>,
 }
 
 /// A scene ready to unwrap and bake.
@@ -74,6 +126,9 @@ pub struct Scene {
     pub primitives: Vec<ScenePrimitive>,
     /// One per glTF material, index for index.
     pub materials: Vec<Material>,
+    /// One per glTF image, index for index: decoded when a baked material
+    /// samples it (`None` otherwise, or when it could not be decoded).
+    pub images: Vec<Option<LinearImage>>,
     /// Things left out or changed, one line each, for the user and the report.
     pub notices: Vec<String>,
 }

@@ -4,9 +4,11 @@
 //! Stages never create a `Gpu`; `main` (or a test) makes one and passes it
 //! down, as wgpu's `hello_compute` example separates set-up from work.
 
+mod materials;
 mod readback;
 mod shaders;
 
+pub use materials::{GpuMaterial, Materials, NO_TEXTURE};
 pub use readback::read_buffer;
 pub use shaders::Shader;
 
@@ -258,6 +260,30 @@ pub fn uniform_entry(binding: u32, stages: wgpu::ShaderStages) -> wgpu::BindGrou
             has_dynamic_offset: false,
             min_binding_size: None,
         },
+        count: None,
+    }
+}
+
+/// A bind-group-layout entry for the material textures (a filterable 2-D array).
+pub fn texture_array_entry(binding: u32, stages: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: stages,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: true },
+            view_dimension: wgpu::TextureViewDimension::D2Array,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
+/// A bind-group-layout entry for a filtering sampler.
+pub fn sampler_entry(binding: u32, stages: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: stages,
+        ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
         count: None,
     }
 }

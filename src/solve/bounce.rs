@@ -19,6 +19,7 @@ use anyhow::Result;
 use bytemuck::{Pod, Zeroable};
 use serde::{Deserialize, Serialize};
 
+use super::casters::Casters;
 use super::patches::Patches;
 use crate::gpu::{self, Gpu, Shader, read_buffer};
 use crate::scene::Scene;
@@ -154,15 +155,14 @@ struct Resources {
     shooters: wgpu::Buffer,
     stats: wgpu::Buffer,
     depth_view: wgpu::TextureView,
-    vertices: wgpu::Buffer,
-    indices: wgpu::Buffer,
-    index_count: u32,
+    casters: Casters,
 }
 
 struct Pipelines {
     power: (wgpu::ComputePipeline, wgpu::BindGroup),
     select: (wgpu::ComputePipeline, wgpu::BindGroup),
-    hemicube: (wgpu::RenderPipeline, wgpu::BindGroup),
+    /// Opaque and alpha-cut-out casters, and their bind group.
+    hemicube: (wgpu::RenderPipeline, wgpu::RenderPipeline, wgpu::BindGroup),
     shoot: (wgpu::ComputePipeline, wgpu::BindGroup),
 }
 
@@ -380,7 +380,6 @@ fn resources(
     tile_rows: u32,
 ) -> Resources {
     let none = wgpu::BufferUsages::empty();
-    let (vertices, indices, index_count) = super::direct::caster_buffers(gpu, scene);
     let depth = gpu.device.create_texture(&wgpu::TextureDescriptor {
         label: Some("solve_hemicube depth"),
         size: wgpu::Extent3d { width: 3 * face * tiles_per_row, height: face * tile_rows, depth_or_array_layers: 1 },
@@ -405,9 +404,7 @@ fn resources(
         shooters: gpu.storage_buffer("solve_select shooters", &[Shooter::default(); MAX_SHOOTERS as usize], none),
         stats: gpu.storage_buffer("solve_select stats", &[GpuStats::default()], wgpu::BufferUsages::COPY_SRC),
         depth_view: depth.create_view(&Default::default()),
-        vertices,
-        indices,
-        index_count,
+        casters: Casters::new(gpu, scene),
     }
 }
 
@@ -459,15 +456,31 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
     );
 
     let vertex = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
+    let [materials_entry, textures_entry, sampler_entry] = Casters::layout_entries(2);
     let hemicube_layout = layout(
         "solve_hemicube",
         &[
             // 0: BounceParams (near, far), 1: shooters
             gpu::uniform_entry(0, vertex),
             gpu::storage_entry(1, true, wgpu::ShaderStages::VERTEX),
+            // 2, 3, 4: materials, their textures and sampler (alpha cut-outs)
+            materials_entry,
+            textures_entry,
+            sampler_entry,
         ],
     );
-    let hemicube_group = gpu::bind_buffers(gpu, "solve_hemicube", &hemicube_layout, &[&r.params, &r.shooters]);
+    let [materials_binding, textures_binding, sampler_binding] = r.casters.bind_entries(2);
+    let hemicube_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("solve_hemicube"),
+        layout: &hemicube_layout,
+        entries: &[
+            wgpu::BindGroupEntry { binding: 0, resource: r.params.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 1, resource: r.shooters.as_entire_binding() },
+            materials_binding,
+            textures_binding,
+            sampler_binding,
+        ],
+    });
 
     let shoot_layout = layout(
         "solve_shoot",
@@ -513,42 +526,27 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
         bind_group_layouts: &[Some(&hemicube_layout)],
         immediate_size: 0,
     });
-    let hemicube = gpu.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some("solve_hemicube"),
-        layout: Some(&hemicube_pipeline_layout),
-        vertex: wgpu::VertexState {
-            module: &module,
-            entry_point: Some("vs_hemicube"),
-            compilation_options: Default::default(),
-            buffers: &[Some(wgpu::VertexBufferLayout {
-                array_stride: 12,
-                step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &wgpu::vertex_attr_array![0 => Float32x3],
-            })],
-        },
-        primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
-        depth_stencil: Some(wgpu::DepthStencilState {
-            format: wgpu::TextureFormat::Depth32Float,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(wgpu::CompareFunction::Less),
-            stencil: Default::default(),
-            bias: Default::default(),
-        }),
-        multisample: Default::default(),
-        fragment: Some(wgpu::FragmentState {
-            module: &module,
-            entry_point: Some("fs_hemicube"),
-            compilation_options: Default::default(),
-            targets: &[],
-        }),
-        multiview_mask: None,
-        cache: None,
-    });
+    let opaque = Casters::pipeline(
+        gpu,
+        "solve_hemicube",
+        &hemicube_pipeline_layout,
+        &module,
+        "vs_hemicube",
+        Some("fs_hemicube"),
+    );
+    let masked = Casters::pipeline(
+        gpu,
+        "solve_hemicube masked",
+        &hemicube_pipeline_layout,
+        &module,
+        "vs_hemicube",
+        Some("fs_hemicube_masked"),
+    );
 
     Pipelines {
         power: (gpu.compute_pipeline(Shader::SolvePatchPower, "main", &[&power_layout]), power_group),
         select: (gpu.compute_pipeline(Shader::SolveSelect, "main", &[&select_layout]), select_group),
-        hemicube: (hemicube, hemicube_group),
+        hemicube: (opaque, masked, hemicube_group),
         shoot: (gpu.compute_pipeline(Shader::SolveShoot, "main", &[&shoot_layout]), shoot_group),
     }
 }
@@ -575,10 +573,8 @@ fn render_hemicubes(
         occlusion_query_set: None,
         multiview_mask: None,
     });
-    pass.set_pipeline(&pipelines.hemicube.0);
-    pass.set_bind_group(0, &pipelines.hemicube.1, &[]);
-    pass.set_vertex_buffer(0, r.vertices.slice(..));
-    pass.set_index_buffer(r.indices.slice(..), wgpu::IndexFormat::Uint32);
+    pass.set_bind_group(0, &pipelines.hemicube.2, &[]);
+    r.casters.bind(&mut pass);
     let s = face as f32;
     for slot in 0..shooters {
         let tile = [(slot % tiles_per_row) as f32 * 3.0 * s, (slot / tiles_per_row) as f32 * s];
@@ -592,7 +588,7 @@ fn render_hemicubes(
         for (f, [x, y, w, h]) in views.into_iter().enumerate() {
             pass.set_viewport(x, y, w, h, 0.0, 1.0);
             let instance = slot * 5 + f as u32;
-            pass.draw_indexed(0..r.index_count, 0, instance..instance + 1);
+            r.casters.draw(&mut pass, &pipelines.hemicube.0, &pipelines.hemicube.1, instance);
         }
     }
 }

@@ -15,6 +15,7 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use super::SolveOptions;
+use super::casters::Casters;
 use crate::environment::LightSet;
 use crate::gpu::{self, Gpu, Shader, read_buffer};
 use crate::scene::Scene;
@@ -140,7 +141,7 @@ pub fn run(
         _pad: [0; 3],
     };
 
-    let (vertex_buffer, index_buffer, index_count) = caster_buffers(gpu, scene);
+    let casters = Casters::new(gpu, scene);
 
     let params_buffer = gpu.uniform_buffer("solve_direct params", &params);
     let lights_buffer = gpu.uniform_buffer("solve_direct lights", &[DirectLight::default(); MAX_BATCH as usize]);
@@ -170,6 +171,7 @@ pub fn run(
     let array_view = depth.create_view(&Default::default());
 
     let both = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::COMPUTE;
+    let [materials_entry, textures_entry, sampler_entry] = Casters::layout_entries(2);
     let depth_layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("solve_depth"),
         entries: &[
@@ -177,10 +179,40 @@ pub fn run(
             gpu::uniform_entry(0, both),
             // 1: the batch's lights
             gpu::uniform_entry(1, both),
+            // 2, 3, 4: materials, their textures and sampler (alpha cut-outs)
+            materials_entry,
+            textures_entry,
+            sampler_entry,
         ],
     });
-    let depth_group = gpu::bind_buffers(gpu, "solve_depth", &depth_layout, &[&params_buffer, &lights_buffer]);
-    let depth_pipeline = depth_pipeline(gpu, &depth_layout);
+    let [materials_binding, textures_binding, sampler_binding] = casters.bind_entries(2);
+    let depth_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("solve_depth"),
+        layout: &depth_layout,
+        entries: &[
+            wgpu::BindGroupEntry { binding: 0, resource: params_buffer.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 1, resource: lights_buffer.as_entire_binding() },
+            materials_binding,
+            textures_binding,
+            sampler_binding,
+        ],
+    });
+    let depth_module = gpu.shader(Shader::SolveDepth);
+    let depth_pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("solve_depth"),
+        bind_group_layouts: &[Some(&depth_layout)],
+        immediate_size: 0,
+    });
+    let opaque_pipeline =
+        Casters::pipeline(gpu, "solve_depth", &depth_pipeline_layout, &depth_module, "vs_depth", None);
+    let masked_pipeline = Casters::pipeline(
+        gpu,
+        "solve_depth masked",
+        &depth_pipeline_layout,
+        &depth_module,
+        "vs_depth",
+        Some("fs_depth_masked"),
+    );
 
     let compute = wgpu::ShaderStages::COMPUTE;
     let gather_layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -248,14 +280,12 @@ pub fn run(
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            pass.set_pipeline(&depth_pipeline);
             pass.set_bind_group(0, &depth_group, &[]);
-            pass.set_vertex_buffer(0, vertex_buffer.slice(..));
-            pass.set_index_buffer(index_buffer.slice(..), wgpu::IndexFormat::Uint32);
+            casters.bind(&mut pass);
             for slot in 0..chunk.len() as u32 {
                 let (tx, ty) = (slot % tiles_per_row, slot / tiles_per_row);
                 pass.set_viewport((tx * size) as f32, (ty * size) as f32, size as f32, size as f32, 0.0, 1.0);
-                pass.draw_indexed(0..index_count, 0, slot..slot + 1);
+                casters.draw(&mut pass, &opaque_pipeline, &masked_pipeline, slot);
             }
         }
         {
@@ -284,55 +314,5 @@ pub fn run(
         irradiance: sums.into_iter().map(|e| [e[0], e[1], e[2]]).collect(),
         coverage: covered.iter().map(|c| if c[1] > 0.0 { c[0] / c[1] } else { 0.0 }).collect(),
         stats,
-    })
-}
-
-/// Shadow casters for depth maps: every triangle of the scene in world space,
-/// drawn from both sides (a one-sided plane still blocks light).
-pub(super) fn caster_buffers(gpu: &Gpu, scene: &Scene) -> (wgpu::Buffer, wgpu::Buffer, u32) {
-    let mut positions: Vec<[f32; 3]> = Vec::new();
-    let mut indices: Vec<u32> = Vec::new();
-    for primitive in &scene.primitives {
-        let base = positions.len() as u32;
-        positions.extend_from_slice(&primitive.positions);
-        indices.extend(primitive.indices.iter().map(|i| i + base));
-    }
-    let vertices = gpu.storage_buffer("scene positions", &positions, wgpu::BufferUsages::VERTEX);
-    let index_buffer = gpu.storage_buffer("scene indices", &indices, wgpu::BufferUsages::INDEX);
-    (vertices, index_buffer, indices.len() as u32)
-}
-
-fn depth_pipeline(gpu: &Gpu, layout: &wgpu::BindGroupLayout) -> wgpu::RenderPipeline {
-    let module = gpu.shader(Shader::SolveDepth);
-    let pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some("solve_depth"),
-        bind_group_layouts: &[Some(layout)],
-        immediate_size: 0,
-    });
-    gpu.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some("solve_depth"),
-        layout: Some(&pipeline_layout),
-        vertex: wgpu::VertexState {
-            module: &module,
-            entry_point: Some("vs_depth"),
-            compilation_options: Default::default(),
-            buffers: &[Some(wgpu::VertexBufferLayout {
-                array_stride: 12,
-                step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &wgpu::vertex_attr_array![0 => Float32x3],
-            })],
-        },
-        primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
-        depth_stencil: Some(wgpu::DepthStencilState {
-            format: wgpu::TextureFormat::Depth32Float,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(wgpu::CompareFunction::Less),
-            stencil: Default::default(),
-            bias: Default::default(),
-        }),
-        multisample: Default::default(),
-        fragment: None,
-        multiview_mask: None,
-        cache: None,
     })
 }

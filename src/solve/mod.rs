@@ -8,6 +8,7 @@
 //! `patches`).
 
 pub mod bounce;
+mod casters;
 pub mod direct;
 pub mod patches;
 

@@ -83,7 +83,7 @@ struct GpuVertex {
     normal: [f32; 3],
     _pad1: f32,
     uv0: [f32; 2],
-    _pad2: [f32; 2],
+    uv1: [f32; 2],
 }
 
 /// Mirrors `struct Triangle` in texelize_attributes.wgsl.
@@ -96,14 +96,6 @@ struct GpuTriangle {
     _pad: u32,
 }
 
-/// Mirrors `struct Material` in texelize_attributes.wgsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-struct GpuMaterial {
-    base_color: [f32; 4],
-    emission: [f32; 4],
-}
-
 /// The whole scene flattened for the GPU, with per-triangle facts the CPU keeps.
 struct Mesh {
     vertices: Vec<GpuVertex>,
@@ -112,7 +104,6 @@ struct Mesh {
     corners: Vec<[f32; 2]>,
     /// World area per texel² of UV area, per triangle.
     area_ratio: Vec<f32>,
-    materials: Vec<GpuMaterial>,
     triangle_primitive: Vec<u32>,
     triangle_chart: Vec<u32>,
 }
@@ -124,15 +115,6 @@ fn flatten(scene: &Scene, atlas: &Atlas) -> Mesh {
         triangles: Vec::new(),
         corners: Vec::new(),
         area_ratio: Vec::new(),
-        materials: scene
-            .materials
-            .iter()
-            .chain(std::iter::once(&crate::scene::Material::default()))
-            .map(|m| GpuMaterial {
-                base_color: m.base_color,
-                emission: [m.emission[0], m.emission[1], m.emission[2], 0.0],
-            })
-            .collect(),
         triangle_primitive: Vec::new(),
         triangle_chart: Vec::new(),
     };
@@ -145,6 +127,7 @@ fn flatten(scene: &Scene, atlas: &Atlas) -> Mesh {
                 position: primitive.positions[source],
                 normal: primitive.normals.as_ref().map_or([0.0; 3], |n| n[source]),
                 uv0: primitive.uv0.as_ref().map_or([0.0; 2], |uv| uv[source]),
+                uv1: primitive.uv1.as_ref().map_or([0.0; 2], |uv| uv[source]),
                 ..Default::default()
             });
         }
@@ -190,7 +173,8 @@ pub fn run(gpu: &Gpu, scene: &Scene, atlas: &Atlas) -> Result<TexelSet> {
         );
     }
     let mesh = flatten(scene, atlas);
-    let mut texels = raster::texelize(gpu, &mesh, atlas.width, atlas.height)?;
+    let materials = crate::gpu::Materials::upload(gpu, scene);
+    let mut texels = raster::texelize(gpu, &mesh, &materials, atlas.width, atlas.height)?;
     for texel in &mut texels {
         texel.primitive = mesh.triangle_primitive[texel.triangle as usize];
         texel.chart = mesh.triangle_chart[texel.triangle as usize];

@@ -7,7 +7,7 @@ use anyhow::Result;
 use bytemuck::{Pod, Zeroable};
 
 use super::{Mesh, Texel};
-use crate::gpu::{self, Gpu, Shader, read_buffer};
+use crate::gpu::{self, Gpu, Materials, Shader, read_buffer};
 
 /// Half the texel diagonal plus a hair: a texel square overlaps a triangle
 /// only if its centre is this close to it.
@@ -63,18 +63,19 @@ fn target(gpu: &Gpu, label: &str, width: u32, height: u32, format: wgpu::Texture
 
 /// Rasterizes `mesh` into a `width`×`height` atlas and returns its covered texels
 /// (`chart` and `primitive` still unset).
-pub(super) fn texelize(gpu: &Gpu, mesh: &Mesh, width: u32, height: u32) -> Result<Vec<Texel>> {
+pub(super) fn texelize(gpu: &Gpu, mesh: &Mesh, materials: &Materials, width: u32, height: u32) -> Result<Vec<Texel>> {
     let targets = Targets {
         triangle: target(gpu, "texelize triangle ids", width, height, wgpu::TextureFormat::R32Uint),
         bary: target(gpu, "texelize barycentrics", width, height, wgpu::TextureFormat::Rg32Float),
         area: target(gpu, "texelize areas", width, height, wgpu::TextureFormat::R32Float),
         depth: target(gpu, "texelize distance", width, height, wgpu::TextureFormat::Depth32Float),
     };
-    rasterize(gpu, mesh, width, height, &targets);
-    interpolate(gpu, mesh, width, height, &targets)
+    let corners = gpu.storage_buffer("texelize corners", &mesh.corners, wgpu::BufferUsages::empty());
+    rasterize(gpu, mesh, &corners, width, height, &targets);
+    interpolate(gpu, mesh, &corners, materials, width, height, &targets)
 }
 
-fn rasterize(gpu: &Gpu, mesh: &Mesh, width: u32, height: u32, targets: &Targets) {
+fn rasterize(gpu: &Gpu, mesh: &Mesh, corners: &wgpu::Buffer, width: u32, height: u32, targets: &Targets) {
     let params = gpu.uniform_buffer(
         "texelize_raster params",
         &RasterParams {
@@ -85,7 +86,6 @@ fn rasterize(gpu: &Gpu, mesh: &Mesh, width: u32, height: u32, targets: &Targets)
             _pad: [0.0; 3],
         },
     );
-    let corners = gpu.storage_buffer("texelize corners", &mesh.corners, wgpu::BufferUsages::empty());
     let ratios = gpu.storage_buffer("texelize area ratios", &mesh.area_ratio, wgpu::BufferUsages::empty());
     let stages = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
     let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -99,7 +99,7 @@ fn rasterize(gpu: &Gpu, mesh: &Mesh, width: u32, height: u32, targets: &Targets)
             gpu::storage_entry(2, true, wgpu::ShaderStages::VERTEX),
         ],
     });
-    let bind_group = gpu::bind_buffers(gpu, "texelize_raster", &layout, &[&params, &corners, &ratios]);
+    let bind_group = gpu::bind_buffers(gpu, "texelize_raster", &layout, &[&params, corners, &ratios]);
     let module = gpu.shader(Shader::TexelizeRaster);
     let pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some("texelize_raster"),
@@ -202,14 +202,21 @@ fn rasterize(gpu: &Gpu, mesh: &Mesh, width: u32, height: u32, targets: &Targets)
     gpu.queue.submit([encoder.finish()]);
 }
 
-fn interpolate(gpu: &Gpu, mesh: &Mesh, width: u32, height: u32, targets: &Targets) -> Result<Vec<Texel>> {
+fn interpolate(
+    gpu: &Gpu,
+    mesh: &Mesh,
+    corners: &wgpu::Buffer,
+    materials: &Materials,
+    width: u32,
+    height: u32,
+    targets: &Targets,
+) -> Result<Vec<Texel>> {
     let texel_size = std::mem::size_of::<Texel>() as u64;
     let band_limit = BAND_BYTES.min(gpu.limits.max_storage_buffer_binding_size);
     let rows_per_band = ((band_limit / (texel_size * width as u64)).max(1) as u32).min(height);
 
     let vertices = gpu.storage_buffer("texelize vertices", &mesh.vertices, wgpu::BufferUsages::empty());
     let triangles = gpu.storage_buffer("texelize triangles", &mesh.triangles, wgpu::BufferUsages::empty());
-    let materials = gpu.storage_buffer("texelize materials", &mesh.materials, wgpu::BufferUsages::empty());
     let band = gpu.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("texelize band"),
         size: texel_size * width as u64 * rows_per_band as u64,
@@ -245,6 +252,11 @@ fn interpolate(gpu: &Gpu, mesh: &Mesh, width: u32, height: u32, targets: &Target
             gpu::storage_entry(6, true, compute),
             // 7: the band's texels, written
             gpu::storage_entry(7, false, compute),
+            // 8: triangle corners in lightmap texels (for the texture footprint)
+            gpu::storage_entry(8, true, compute),
+            // 9, 10: material textures and their sampler
+            gpu::texture_array_entry(9, compute),
+            gpu::sampler_entry(10, compute),
         ],
     });
     let pipeline = gpu.compute_pipeline(Shader::TexelizeAttributes, "main", &[&layout]);
@@ -266,8 +278,11 @@ fn interpolate(gpu: &Gpu, mesh: &Mesh, width: u32, height: u32, targets: &Target
                 wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::TextureView(&views[2]) },
                 wgpu::BindGroupEntry { binding: 4, resource: vertices.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 5, resource: triangles.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 6, resource: materials.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 6, resource: materials.buffer.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 7, resource: band.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 8, resource: corners.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 9, resource: wgpu::BindingResource::TextureView(&materials.textures) },
+                wgpu::BindGroupEntry { binding: 10, resource: wgpu::BindingResource::Sampler(&materials.sampler) },
             ],
         });
         let mut encoder = gpu.device.create_command_encoder(&Default::default());

@@ -1,0 +1,160 @@
+//! Shadow casters for the depth maps of both solve passes: every triangle of
+//! the scene in world space, drawn from both sides (a one-sided plane still
+//! blocks light). Triangles of alpha-MASK materials come last and are drawn
+//! with a fragment shader that discards their cut-out texels, so light
+//! passes through the holes.
+
+use std::ops::Range;
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::gpu::{self, Gpu, Materials};
+use crate::scene::Scene;
+
+/// One caster vertex. Mirrors `CasterIn` in common.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+struct CasterVertex {
+    position: [f32; 3],
+    material: u32,
+    uv0: [f32; 2],
+    uv1: [f32; 2],
+}
+
+/// The vertex layout every caster pipeline uses.
+pub const VERTEX_LAYOUT: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayout {
+    array_stride: std::mem::size_of::<CasterVertex>() as u64,
+    step_mode: wgpu::VertexStepMode::Vertex,
+    attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Uint32, 2 => Float32x2, 3 => Float32x2],
+};
+
+/// The scene's casters on the GPU, with the materials their cut-outs need.
+pub struct Casters {
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    /// Index ranges of opaque and of alpha-MASK triangles.
+    opaque: Range<u32>,
+    masked: Range<u32>,
+    pub materials: Materials,
+}
+
+impl Casters {
+    pub fn new(gpu: &Gpu, scene: &Scene) -> Casters {
+        let materials = Materials::upload(gpu, scene);
+        let default_material = scene.materials.len();
+        let mut vertices = Vec::new();
+        let (mut opaque, mut masked) = (Vec::new(), Vec::new());
+        for primitive in &scene.primitives {
+            let base = vertices.len() as u32;
+            let material = primitive.material.unwrap_or(default_material);
+            for (i, &position) in primitive.positions.iter().enumerate() {
+                vertices.push(CasterVertex {
+                    position,
+                    material: material as u32,
+                    uv0: primitive.uv0.as_ref().map_or([0.0; 2], |uv| uv[i]),
+                    uv1: primitive.uv1.as_ref().map_or([0.0; 2], |uv| uv[i]),
+                });
+            }
+            let target = if materials.is_masked(material) { &mut masked } else { &mut opaque };
+            target.extend(primitive.indices.iter().map(|i| i + base));
+        }
+        let (opaque_count, masked_count) = (opaque.len() as u32, masked.len() as u32);
+        opaque.extend(masked);
+        Casters {
+            vertices: gpu.storage_buffer("casters vertices", &vertices, wgpu::BufferUsages::VERTEX),
+            indices: gpu.storage_buffer("casters indices", &opaque, wgpu::BufferUsages::INDEX),
+            opaque: 0..opaque_count,
+            masked: opaque_count..opaque_count + masked_count,
+            materials,
+        }
+    }
+
+    /// Layout entries for bindings `first`, `first + 1`, `first + 2`: the
+    /// materials, their textures and the sampler, for the masked fragment shader.
+    pub fn layout_entries(first: u32) -> [wgpu::BindGroupLayoutEntry; 3] {
+        let fragment = wgpu::ShaderStages::FRAGMENT;
+        [
+            gpu::storage_entry(first, true, fragment),
+            gpu::texture_array_entry(first + 1, fragment),
+            gpu::sampler_entry(first + 2, fragment),
+        ]
+    }
+
+    /// The bind-group entries matching `layout_entries(first)`.
+    pub fn bind_entries(&self, first: u32) -> [wgpu::BindGroupEntry<'_>; 3] {
+        [
+            wgpu::BindGroupEntry { binding: first, resource: self.materials.buffer.as_entire_binding() },
+            wgpu::BindGroupEntry {
+                binding: first + 1,
+                resource: wgpu::BindingResource::TextureView(&self.materials.textures),
+            },
+            wgpu::BindGroupEntry {
+                binding: first + 2,
+                resource: wgpu::BindingResource::Sampler(&self.materials.sampler),
+            },
+        ]
+    }
+
+    /// Binds the geometry for drawing.
+    pub fn bind(&self, pass: &mut wgpu::RenderPass) {
+        pass.set_vertex_buffer(0, self.vertices.slice(..));
+        pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
+    }
+
+    /// Draws every caster for `instance`: opaque triangles with `opaque`,
+    /// cut-out ones with `masked`. Leaves `masked` bound when it drew any.
+    pub fn draw(
+        &self,
+        pass: &mut wgpu::RenderPass,
+        opaque: &wgpu::RenderPipeline,
+        masked: &wgpu::RenderPipeline,
+        instance: u32,
+    ) {
+        if !self.opaque.is_empty() {
+            pass.set_pipeline(opaque);
+            pass.draw_indexed(self.opaque.clone(), 0, instance..instance + 1);
+        }
+        if !self.masked.is_empty() {
+            pass.set_pipeline(masked);
+            pass.draw_indexed(self.masked.clone(), 0, instance..instance + 1);
+        }
+    }
+
+    /// A depth-only pipeline for casters: `fragment` None for opaque triangles.
+    pub fn pipeline(
+        gpu: &Gpu,
+        label: &str,
+        layout: &wgpu::PipelineLayout,
+        module: &wgpu::ShaderModule,
+        vertex: &str,
+        fragment: Option<&str>,
+    ) -> wgpu::RenderPipeline {
+        gpu.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some(label),
+            layout: Some(layout),
+            vertex: wgpu::VertexState {
+                module,
+                entry_point: Some(vertex),
+                compilation_options: Default::default(),
+                buffers: &[Some(VERTEX_LAYOUT)],
+            },
+            primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: wgpu::TextureFormat::Depth32Float,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: fragment.map(|entry| wgpu::FragmentState {
+                module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                targets: &[],
+            }),
+            multiview_mask: None,
+            cache: None,
+        })
+    }
+}

@@ -1,0 +1,175 @@
+//! Materials as the bake sees them: base colour and emissive textures through
+//! TEXCOORD_0 (sRGB decoded to linear, KHR_texture_transform applied, each
+//! lightmap texel averaging its footprint), and alpha cut-outs that let
+//! light through.
+
+mod common;
+
+use bake::environment::{EnvironmentMap, LightMode};
+use bake::fixtures::{MeshData, Placement, SceneBuilder};
+use glam::{Quat, Vec3};
+use image::{Rgba, RgbaImage};
+use serde_json::json;
+
+fn solid(color: [u8; 4]) -> RgbaImage {
+    RgbaImage::from_pixel(4, 4, Rgba(color))
+}
+
+/// Left half `left`, right half `right` (u < 0.5 and u ≥ 0.5).
+fn halves(left: [u8; 4], right: [u8; 4]) -> RgbaImage {
+    RgbaImage::from_fn(64, 64, |x, _| Rgba(if x < 32 { left } else { right }))
+}
+
+/// A 2×2 m quad facing +Y whose material is built by `dress`.
+fn quad(dress: impl Fn(&mut SceneBuilder, usize)) -> SceneBuilder {
+    let mut builder = SceneBuilder::new();
+    let material = builder.material("quad", [1.0, 1.0, 1.0, 1.0], [0.0; 3]);
+    dress(&mut builder, material);
+    let mesh = builder.mesh("quad", &MeshData::plane(2.0, 2.0, 2), Some(material));
+    builder.node("quad", mesh, Placement::default());
+    builder
+}
+
+fn albedos(builder: &SceneBuilder) -> Vec<(Vec3, [f32; 3], [f32; 3])> {
+    let gpu = common::gpu();
+    let lights = common::lights(&EnvironmentMap::constant([1.0; 3]), LightMode::Cube { face_size: 4 });
+    let baked = common::bake(&gpu, builder, &lights, &common::options(64));
+    baked.texels.texels.iter().filter(|t| t.area > 0.0).map(|t| (t.position(), t.albedo, t.emission)).collect()
+}
+
+#[test]
+fn base_colour_texture_is_decoded_from_srgb() {
+    // 8-bit 128 in sRGB is 0.2158 in linear light; 255 is 1.
+    let texels = albedos(&quad(|b, m| {
+        let t = b.png_texture(&solid([128, 255, 0, 255]), 10497);
+        b.base_color_texture(m, t, None);
+    }));
+    for (p, albedo, _) in texels {
+        assert!((albedo[0] - 0.2158).abs() < 0.003, "at {p}: {albedo:?}");
+        assert!((albedo[1] - 1.0).abs() < 0.003 && albedo[2] < 0.001, "at {p}: {albedo:?}");
+    }
+}
+
+#[test]
+fn texture_follows_texcoord_0_and_khr_texture_transform() {
+    // The plane's TEXCOORD_0 runs u from 0 at x = −1 to 1 at x = +1.
+    let plain = albedos(&quad(|b, m| {
+        let t = b.png_texture(&halves([0, 0, 0, 255], [255, 255, 255, 255]), 33071);
+        b.base_color_texture(m, t, None);
+    }));
+    for (p, albedo, _) in &plain {
+        if p.x < -0.3 {
+            assert!(albedo[0] < 0.05, "left half should be black at {p}: {albedo:?}");
+        } else if p.x > 0.3 {
+            assert!(albedo[0] > 0.95, "right half should be white at {p}: {albedo:?}");
+        }
+    }
+    // uv' = 0.5 + 0.5·uv reads only the white half (texels that are not on
+    // the quad's −X edge, whose footprint reaches back across uv' = 0.5).
+    let shifted = albedos(&quad(|b, m| {
+        let t = b.png_texture(&halves([0, 0, 0, 255], [255, 255, 255, 255]), 33071);
+        b.base_color_texture(m, t, Some(json!({ "offset": [0.5, 0.0], "scale": [0.5, 1.0] })));
+    }));
+    for (p, albedo, _) in shifted.iter().filter(|(p, _, _)| p.x > -0.9) {
+        assert!(albedo[0] > 0.9, "with the transform everything reads white, at {p}: {albedo:?}");
+    }
+}
+
+#[test]
+fn a_texel_averages_the_texture_it_covers() {
+    // A one-pixel checker of black and white, 256 × 256 on the quad: every
+    // lightmap texel covers many checker squares and must hold their mean (0.5
+    // in linear light), not whichever square its centre lands on.
+    let checker = RgbaImage::from_fn(256, 256, |x, y| Rgba(if (x + y) % 2 == 0 { [0, 0, 0, 255] } else { [255; 4] }));
+    let texels = albedos(&quad(|b, m| {
+        let t = b.png_texture(&checker, 10497);
+        b.base_color_texture(m, t, None);
+    }));
+    let values: Vec<f32> = texels.iter().map(|(_, a, _)| a[0]).collect();
+    let mean = values.iter().sum::<f32>() / values.len() as f32;
+    let worst = values.iter().map(|v| (v - 0.5).abs()).fold(0.0, f32::max);
+    eprintln!("checker: mean albedo {mean:.4}, worst texel off by {worst:.4}");
+    assert!(worst < 0.05, "a texel is {worst} away from the checker's mean");
+}
+
+#[test]
+fn emissive_texture_scales_emission() {
+    let texels = albedos(&quad(|b, m| {
+        b.set_emission(m, [4.0, 4.0, 4.0]);
+        let t = b.png_texture(&halves([0, 0, 0, 255], [255, 255, 255, 255]), 33071);
+        b.emissive_texture(m, t);
+    }));
+    for (p, _, emission) in texels {
+        if p.x < -0.3 {
+            assert!(emission[0] < 0.05, "at {p}: {emission:?}");
+        } else if p.x > 0.3 {
+            assert!((emission[0] - 4.0).abs() < 0.05, "at {p}: {emission:?}");
+        }
+    }
+}
+
+#[test]
+fn red_textured_floor_bounces_red_light_onto_a_white_wall() {
+    let gpu = common::gpu();
+    let mut builder = SceneBuilder::new();
+    let red = builder.material("floor", [1.0, 1.0, 1.0, 1.0], [0.0; 3]);
+    let t = builder.png_texture(&solid([230, 20, 20, 255]), 10497);
+    builder.base_color_texture(red, t, None);
+    let floor = builder.mesh("floor", &MeshData::plane(4.0, 4.0, 4), Some(red));
+    builder.node("floor", floor, Placement::default());
+    builder.object(
+        "wall",
+        &MeshData::plane(2.0, 4.0, 4),
+        [0.8, 0.8, 0.8, 1.0],
+        [0.0; 3],
+        Placement::at(Vec3::new(-2.0, 1.0, 0.0)).rotated(Quat::from_rotation_z(-90f32.to_radians())),
+    );
+    let lights = common::lights(&EnvironmentMap::constant([1.0; 3]), LightMode::Cube { face_size: 8 });
+    let baked = common::bake(&gpu, &builder, &lights, &common::options(96));
+    let (mut low, mut high) = ([0.0f32; 3], [0.0f32; 3]);
+    for (t, v) in baked.texels.texels.iter().zip(&baked.solution.lightmap) {
+        if t.primitive == 1 {
+            let target = if t.position[1] < 0.5 { &mut low } else { &mut high };
+            for c in 0..3 {
+                target[c] += v[c];
+            }
+        }
+    }
+    let (near, far) = (low[0] / low[1], high[0] / high[1]);
+    eprintln!("wall light red/green: {near:.3} next to the floor, {far:.3} higher up");
+    assert!(near > 1.1 && near > far, "near {near}, far {far}");
+}
+
+#[test]
+fn alpha_cut_out_lets_sunlight_through_the_holes() {
+    // A canopy 1 m above the ground, opaque on its −X half and cut out
+    // (alpha 0) on its +X half, under a sun overhead: the ground is lit
+    // under the holes and shadowed under the solid half.
+    let gpu = common::gpu();
+    let mut builder = SceneBuilder::new();
+    builder.object("ground", &MeshData::plane(8.0, 8.0, 4), [0.5, 0.5, 0.5, 1.0], [0.0; 3], Placement::default());
+    let canopy = builder.material("canopy", [0.5, 0.5, 0.5, 1.0], [0.0; 3]);
+    let t = builder.png_texture(&halves([128, 128, 128, 255], [128, 128, 128, 0]), 33071);
+    builder.base_color_texture(canopy, t, None);
+    builder.alpha_mask(canopy, 0.5);
+    let mesh = builder.mesh("canopy", &MeshData::plane(4.0, 4.0, 2), Some(canopy));
+    builder.node(
+        "canopy",
+        mesh,
+        Placement::at(Vec3::new(0.0, 1.0, 0.0)).rotated(Quat::from_rotation_x(180f32.to_radians())),
+    );
+    let sun = EnvironmentMap::from_fn(512, 256, |d| if d[1] > 0.999 { [1000.0; 3] } else { [0.0; 3] });
+    let lights = common::lights(&sun, LightMode::Budget { count: 16 });
+    let baked = common::bake(&gpu, &builder, &lights, &common::options(128));
+    let ground = common::values_of(&baked, 0);
+    let mean = |inside: &dyn Fn(Vec3) -> bool| {
+        let v: Vec<f32> = ground.iter().filter(|(t, _)| inside(t.position())).map(|(_, v)| *v).collect();
+        v.iter().sum::<f32>() / v.len() as f32
+    };
+    let under_solid = mean(&|p| p.x < -0.5 && p.x > -1.5 && p.z.abs() < 1.5);
+    let under_holes = mean(&|p| p.x > 0.5 && p.x < 1.5 && p.z.abs() < 1.5);
+    let open = mean(&|p| p.x.abs() > 3.0);
+    eprintln!("ground under the solid half {under_solid:.3}, under the holes {under_holes:.3}, in the open {open:.3}");
+    assert!(under_solid < 0.1 * open, "the solid half casts a shadow");
+    assert!(under_holes > 0.9 * open, "the cut-out half lets the sun through");
+}
