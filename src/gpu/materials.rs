@@ -64,20 +64,12 @@ impl Materials {
     pub fn upload(gpu: &Gpu, scene: &Scene) -> Materials {
         // Layers: the decoded images, in image order.
         let mut layer_of = vec![NO_TEXTURE; scene.images.len()];
-        let decoded: Vec<&LinearImage> = scene
-            .images
-            .iter()
-            .enumerate()
-            .filter_map(|(i, image)| {
-                let image = image.as_ref()?;
-                layer_of[i] = 0;
-                Some(image)
-            })
-            .collect();
-        let mut next = 0;
-        for layer in layer_of.iter_mut().filter(|l| **l == 0) {
-            *layer = next;
-            next += 1;
+        let mut decoded: Vec<&LinearImage> = Vec::new();
+        for (i, image) in scene.images.iter().enumerate() {
+            if let Some(image) = image {
+                layer_of[i] = decoded.len() as u32;
+                decoded.push(image);
+            }
         }
         let size = decoded
             .iter()
