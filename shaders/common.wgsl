@@ -58,7 +58,8 @@ struct DirectParams {
     _pad2: u32,
 }
 
-// A distant light: unit direction towards it, and L·Ω (rgb) with Ω in w.
+// A distant light: unit direction towards it with the tangent of its angular
+// radius in w (a cone of its solid angle), and L·Ω (rgb) with Ω in w.
 struct DirectLight {
     direction: vec4f,
     power: vec4f,

@@ -12,7 +12,7 @@ fn sphere_under_constant_sky_is_lit_uniformly_at_l() {
     let radiance = 1.7;
     let mut builder = SceneBuilder::new();
     builder.object("sphere", &MeshData::sphere(1.0, 48, 24), [0.8, 0.8, 0.8, 1.0], [0.0; 3], Placement::default());
-    let lights = common::lights(&EnvironmentMap::constant([radiance; 3]), LightMode::Cube { face_size: 32 });
+    let lights = common::lights(&EnvironmentMap::constant([radiance; 3]), LightMode::Cube { face_size: 16 });
     let baked = common::bake(&gpu, &builder, &lights, &common::options(128));
     let mut worst: f32 = 0.0;
     for (texel, value) in common::values_of(&baked, 0) {

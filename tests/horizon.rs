@@ -18,7 +18,7 @@ fn plane_value(rotation: Quat) -> (f32, f32) {
         [0.0; 3],
         Placement::default().rotated(rotation),
     );
-    let lights = common::lights(&EnvironmentMap::horizon([2.0; 3]), LightMode::Cube { face_size: 32 });
+    let lights = common::lights(&EnvironmentMap::horizon([2.0; 3]), LightMode::Cube { face_size: 16 });
     let baked = common::bake(&gpu, &builder, &lights, &common::options(64));
     let values: Vec<f32> = common::values_of(&baked, 0).into_iter().map(|(_, v)| v).collect();
     let min = values.iter().cloned().fold(f32::INFINITY, f32::min);

@@ -24,7 +24,7 @@ fn sphere_darkens_the_ground_beneath_it_by_the_analytic_amount() {
         Placement::at(Vec3::new(0.0, height, 0.0)),
     );
     let sky = 1.0;
-    let lights = common::lights(&EnvironmentMap::horizon([sky; 3]), LightMode::Cube { face_size: 32 });
+    let lights = common::lights(&EnvironmentMap::horizon([sky; 3]), LightMode::Budget { count: 512 });
     let baked = common::bake(&gpu, &builder, &lights, &common::options(256));
     let ground = common::values_of(&baked, 0);
 

@@ -260,7 +260,10 @@ pub fn run(
         for (slot, light) in slots.iter_mut().zip(chunk) {
             let [r, g, b] = light.radiance;
             let omega = light.solid_angle;
-            slot.direction = [light.direction[0], light.direction[1], light.direction[2], 0.0];
+            // The light as a cone of its solid angle: tan of the cone's half-angle.
+            let cos_alpha = (1.0 - omega / std::f32::consts::TAU).max(0.5);
+            let tan_alpha = (1.0 - cos_alpha * cos_alpha).sqrt() / cos_alpha;
+            slot.direction = [light.direction[0], light.direction[1], light.direction[2], tan_alpha];
             slot.power = [r * omega, g * omega, b * omega, omega];
         }
         params.light_count = chunk.len() as u32;
