@@ -17,6 +17,44 @@ struct Texel {
     primitive: u32,
 }
 
+// Barycentric weights of the point of triangle (a, b, c) closest to p
+// (Ericson, Real-Time Collision Detection, 5.1.5).
+fn closest_barycentric(p: vec2f, a: vec2f, b: vec2f, c: vec2f) -> vec3f {
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = dot(ab, ap);
+    let d2 = dot(ac, ap);
+    if (d1 <= 0.0 && d2 <= 0.0) { return vec3f(1.0, 0.0, 0.0); }
+    let bp = p - b;
+    let d3 = dot(ab, bp);
+    let d4 = dot(ac, bp);
+    if (d3 >= 0.0 && d4 <= d3) { return vec3f(0.0, 1.0, 0.0); }
+    let vc = d1 * d4 - d3 * d2;
+    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+        let v = d1 / (d1 - d3);
+        return vec3f(1.0 - v, v, 0.0);
+    }
+    let cp = p - c;
+    let d5 = dot(ab, cp);
+    let d6 = dot(ac, cp);
+    if (d6 >= 0.0 && d5 <= d6) { return vec3f(0.0, 0.0, 1.0); }
+    let vb = d5 * d2 - d1 * d6;
+    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+        let w = d2 / (d2 - d6);
+        return vec3f(1.0 - w, 0.0, w);
+    }
+    let va = d3 * d6 - d5 * d4;
+    if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return vec3f(0.0, 1.0 - w, w);
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let v = vb * denom;
+    let w = vc * denom;
+    return vec3f(1.0 - v - w, v, w);
+}
+
 // An orthonormal basis around unit vector n (Duff et al. 2017, "Building an
 // Orthonormal Basis, Revisited"): columns t, b, n. Used by both the depth
 // pass and the receivers, so their light spaces agree bit for bit.
@@ -50,12 +88,12 @@ struct DirectParams {
     row_stride: u32,       // invocations per dispatch row
     tiles_per_row: u32,    // shadow maps per row of the batch's depth atlas
     normal_offset: f32,    // metres
-    constant_bias: f32,    // metres
-    slope_bias: f32,       // metres per unit of tan(θ)
-    max_slope: f32,        // cap on tan(θ)
-    _pad0: u32,
+    constant_bias: f32,    // depth tolerance, metres
+    max_slope: f32,        // cap on the receiver plane's tan(θ)
+    plane_tolerance: f32,  // how close a stored depth must be to the receiver's plane to be that plane, depth units
     _pad1: u32,
     _pad2: u32,
+    _pad3: u32,
 }
 
 // A distant light: unit direction towards it with the tangent of its angular

@@ -11,6 +11,10 @@
 @group(0) @binding(4) var<storage, read> unshot: array<vec4f>;
 // Per patch: rgb = Σ ΔL·A, w = Σ received luminance·area.
 @group(0) @binding(5) var<storage, read_write> patch_power: array<vec4f>;
+// Per patch: where its unshot light is (its centroid weighted by unshot
+// power; the area centroid when it has none). A patch a wall cuts through
+// (a floor cell half inside a room) then shoots from its lit side.
+@group(0) @binding(6) var<storage, read_write> patch_origin: array<vec4f>;
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -21,11 +25,22 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let own = patches[j];
     var power = vec3f(0.0);
     var received = 0.0;
+    var weighted = vec3f(0.0);
+    var weight = 0.0;
     for (var m = 0u; m < own.count; m++) {
         let i = members[own.first + m];
         let u = unshot[i];
-        power += u.rgb * texels[i].area;
+        let texel = texels[i];
+        power += u.rgb * texel.area;
         received += u.w;
+        let w = luminance(u.rgb) * texel.area;
+        weighted += w * texel.position;
+        weight += w;
     }
     patch_power[j] = vec4f(power, received);
+    if (weight > 0.0) {
+        patch_origin[j] = vec4f(weighted / weight, weight);
+    } else {
+        patch_origin[j] = vec4f(own.position, 0.0);
+    }
 }

@@ -10,6 +10,7 @@
 @group(0) @binding(3) var<storage, read_write> chosen: array<u32>;
 @group(0) @binding(4) var<storage, read_write> shooters: array<Shooter>;
 @group(0) @binding(5) var<storage, read_write> stats: BounceStats;
+@group(0) @binding(6) var<storage, read> patch_origin: array<vec4f>;
 
 const THREADS: u32 = 256u;
 var<workgroup> best_power: array<f32, THREADS>;
@@ -72,15 +73,17 @@ fn main(@builtin(local_invocation_index) lid: u32) {
             if (winner != NO_TRIANGLE && best_power[0] > 0.0) {
                 let chosen_patch = patches[winner];
                 let power = patch_power[winner].rgb;
-                shooter.position = chosen_patch.position;
+                shooter.position = patch_origin[winner].xyz;
                 shooter.area = chosen_patch.area;
                 shooter.normal = chosen_patch.normal;
                 shooter.patch_index = winner;
                 shooter.radiance = power / max(chosen_patch.area, 1e-30);
                 shooter.radius = chosen_patch.radius;
                 shooter.rect_centre = chosen_patch.rect_centre;
-                // Lift the hemicube off the surface so it does not see its own patch.
-                shooter.lift = chosen_patch.lift + params.receiver_offset;
+                // Lift the hemicube just off the surface (above a curved patch's
+                // rise) so it does not see its own patch; receivers between the
+                // surface and the hemicube count as seen.
+                shooter.lift = chosen_patch.lift + 0.02 * params.receiver_offset;
                 shooter.half_u = chosen_patch.half_u;
                 shooter.half_v = chosen_patch.half_v;
                 shooter.rect_area = 4.0 * length(cross(chosen_patch.half_u, chosen_patch.half_v));

@@ -31,6 +31,9 @@ var<workgroup> batch: array<Shooter, MAX_SHOOTERS>;
 // One edge's term of Lambert's contour integral, for corner vectors a, b
 // seen from the receiver.
 fn edge_term(a: vec3f, b: vec3f, n: vec3f) -> f32 {
+    if (dot(a, a) <= 0.0 || dot(b, b) <= 0.0) {
+        return 0.0;
+    }
     let ua = normalize(a);
     let ub = normalize(b);
     let c = cross(ua, ub);
@@ -74,6 +77,10 @@ fn parallelogram_form_factor(p: vec3f, n: vec3f, centre: vec3f, u: vec3f, v: vec
     let c1 = c + u - v;
     let c2 = c + u + v;
     let c3 = c - u + v;
+    let above = u32(dot(c0, n) >= 0.0) + u32(dot(c1, n) >= 0.0) + u32(dot(c2, n) >= 0.0) + u32(dot(c3, n) >= 0.0);
+    if (above == 0u) {
+        return 0.0;
+    }
     var exit = vec3f(0.0);
     var entry = vec3f(0.0);
     var sum = clipped_edge(c0, c1, n, &exit, &entry);
@@ -81,10 +88,57 @@ fn parallelogram_form_factor(p: vec3f, n: vec3f, centre: vec3f, u: vec3f, v: vec
     sum += clipped_edge(c2, c3, n, &exit, &entry);
     sum += clipped_edge(c3, c0, n, &exit, &entry);
     // Close the outline along the horizon where the polygon was cut.
-    if (dot(c0, n) < 0.0 || dot(c1, n) < 0.0 || dot(c2, n) < 0.0 || dot(c3, n) < 0.0) {
+    if (above < 4u) {
         sum += edge_term(exit, entry, n);
     }
     return abs(sum) / (2.0 * PI);
+}
+
+// The direction (shooter's frame, not normalized) through the centre of
+// hemicube texel `xy` of `face`, whose viewport is `view`.
+fn hemicube_texel_direction(xy: vec2<i32>, view: vec4f, face: u32) -> vec3f {
+    let uv = ((vec2f(xy) + 0.5 - view.xy) / view.zw) * vec2f(2.0, -2.0) + vec2f(-1.0, 1.0);
+    let up = 0.5 * (uv.y + 1.0);
+    switch face {
+        case 0u: { return vec3f(uv.x, uv.y, 1.0); }
+        case 1u: { return vec3f(1.0, uv.x, up); }
+        case 2u: { return vec3f(-1.0, uv.x, up); }
+        case 3u: { return vec3f(uv.x, 1.0, up); }
+        default: { return vec3f(uv.x, -1.0, up); }
+    }
+}
+
+// Whether the receiver at `distance` from the hemicube's origin is seen
+// from it, given the `stored` distance of the first surface through its
+// hemicube texel. As for shadow maps: where the stored surface is the
+// receiver's own plane (its distance along the texel's centre ray, worked
+// out exactly), the texel shows the receiver; anything else must not be in
+// front of it. A bias growing with the receiver's tilt would let light
+// through walls that meet it.
+fn visible_from_shooter(
+    distance: f32,
+    stored: f32,
+    xy: vec2<i32>,
+    view: vec4f,
+    face: u32,
+    m: mat3x3f,
+    origin: vec3f,
+    texel: Texel,
+    size: f32,
+) -> bool {
+    let footprint = distance * 2.0 / size;
+    if (distance <= stored + 0.25 * footprint) {
+        return true;
+    }
+    let ray = normalize(m * hemicube_texel_direction(xy, view, face));
+    let facing = dot(texel.face_normal, ray);
+    // The ray must meet the plane from the receiver's front: from behind, the
+    // plane is a zero-thickness wall between them, not the receiver's face.
+    if (facing > -1e-4) {
+        return false;
+    }
+    let plane = dot(texel.face_normal, texel.position - origin) / facing;
+    return abs(stored - plane) <= 0.5 * footprint;
 }
 
 @compute @workgroup_size(64)
@@ -144,12 +198,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_
             let pixel = view.xy + vec2f(uvw.x * 0.5 + 0.5, 0.5 - uvw.y * 0.5) * view.zw;
             let xy = vec2<i32>(clamp(floor(pixel), view.xy, view.xy + view.zw - 1.0));
             let stored = textureLoad(depth, xy, 0) * params.far;
-            // A hemicube texel spans about 2/S radians: a tilted receiver's
-            // depth changes by d·(2/S)·tan θ across it.
-            let cos_f = abs(dot(texel.face_normal, from_origin)) / distance;
-            let tangent = min(sqrt(max(1.0 - cos_f * cos_f, 0.0)) / max(cos_f, 1e-4), params.max_slope);
-            let bias = distance * (2.0 / size) * (1.0 + tangent) + params.receiver_offset;
-            if (distance > stored + bias) {
+            if (!visible_from_shooter(distance, stored, xy, view, face, m, hemicube_origin(s), texel, size)) {
                 continue;
             }
         }

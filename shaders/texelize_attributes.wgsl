@@ -7,6 +7,10 @@ struct AttributeParams {
     height: u32,
     first_row: u32,
     rows: u32,
+    inset: f32,   // how far inside the chart border texels take their data, texels
+    _pad0: f32,
+    _pad1: f32,
+    _pad2: f32,
 }
 
 struct Vertex {
@@ -22,7 +26,7 @@ struct Triangle {
     corners: vec3<u32>,
     material: u32,
     face_normal: vec3f,  // from the winding, world space; zero if degenerate
-    _pad: u32,
+    border_edges: u32,   // bit k: edge k → k+1 lies on the chart's border
 }
 
 @group(0) @binding(0) var<uniform> params: AttributeParams;
@@ -59,6 +63,58 @@ fn footprint_lod(t: TextureRef, t_index: u32, va: Vertex, vb: Vertex, vc: Vertex
     return log2(max(max(length(dx), length(dy)) * size, 1e-6));
 }
 
+// Barycentric weights of the point nearest `centre` in triangle t with its
+// chart-border edges moved `params.inset` texels inwards (inner edges stay:
+// the chart goes on across them). Where the triangle is too thin for that,
+// its incentre.
+fn inset_weights(centre: vec2f, t: u32) -> vec3f {
+    let tri = triangles[t];
+    let a = corners[3u * t];
+    let b = corners[3u * t + 1u];
+    let c = corners[3u * t + 2u];
+    let twice_area = (b.x - a.x) * (c.y - a.y) - (c.x - a.x) * (b.y - a.y);
+    if (abs(twice_area) <= 1e-12) {
+        return closest_barycentric(centre, a, b, c);
+    }
+    // Each edge as a line n·p = d with n pointing into the triangle.
+    var pts = array<vec2f, 3>(a, b, c);
+    var normals: array<vec2f, 3>;
+    var offsets: array<f32, 3>;
+    for (var k = 0u; k < 3u; k++) {
+        let p0 = pts[k];
+        let p1 = pts[(k + 1u) % 3u];
+        let e = p1 - p0;
+        var n = normalize(vec2f(-e.y, e.x));
+        if (twice_area < 0.0) {
+            n = -n;
+        }
+        let shift = select(0.0, params.inset, (tri.border_edges & (1u << k)) != 0u);
+        normals[k] = n;
+        offsets[k] = dot(n, p0) + shift;
+    }
+    // The shrunk triangle's corners: where consecutive edge lines meet.
+    var inner: array<vec2f, 3>;
+    for (var k = 0u; k < 3u; k++) {
+        let n0 = normals[(k + 2u) % 3u];
+        let n1 = normals[k];
+        let d0 = offsets[(k + 2u) % 3u];
+        let d1 = offsets[k];
+        let det = n0.x * n1.y - n0.y * n1.x;
+        inner[k] = vec2f(d0 * n1.y - d1 * n0.y, n0.x * d1 - n1.x * d0) / det;
+    }
+    let inner_area = (inner[1].x - inner[0].x) * (inner[2].y - inner[0].y) - (inner[2].x - inner[0].x) * (inner[1].y - inner[0].y);
+    var target_point: vec2f;
+    if (inner_area * twice_area <= 0.0) {
+        // Too thin to keep half a texel from its borders: use the incentre.
+        let sides = vec3f(length(b - c), length(c - a), length(a - b));
+        target_point = (sides.x * a + sides.y * b + sides.z * c) / (sides.x + sides.y + sides.z);
+    } else {
+        let w = closest_barycentric(centre, inner[0], inner[1], inner[2]);
+        target_point = w.x * inner[0] + w.y * inner[1] + w.z * inner[2];
+    }
+    return closest_barycentric(target_point, a, b, c);
+}
+
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= params.width || id.y >= params.rows) {
@@ -77,8 +133,18 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let t = id_plus_one - 1u;
     let tri = triangles[t];
-    let bc = textureLoad(barycentrics, vec2<u32>(x, y), 0).xy;
-    let w = vec3f(1.0 - bc.x - bc.y, bc.x, bc.y);
+    let nearest = textureLoad(barycentrics, vec2<u32>(x, y), 0);
+    var w = vec3f(1.0 - nearest.x - nearest.y, nearest.x, nearest.y);
+    let covered = textureLoad(areas, vec2<u32>(x, y), 0).xy;
+    // A texel whose centre lies outside its chart (or on its border: then the
+    // chart covers at most half of it) takes its data from a point half a
+    // texel inside the chart, not from the edge itself: an edge point lies on
+    // the geometry that meets it (a wall on a floor) and would see half its
+    // sky cut off, or tunnel under it. Texels whose centre is inside keep it,
+    // also when it lies on an edge between two triangles.
+    if (nearest.z > 1e-3 || covered.y < 0.501) {
+        w = inset_weights(vec2f(f32(x) + 0.5, f32(y) + 0.5), t);
+    }
     let va = vertices[tri.corners.x];
     let vb = vertices[tri.corners.y];
     let vc = vertices[tri.corners.z];
@@ -113,7 +179,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         textures, texture_sampler, material.emissive_texture, emissive_uv,
         footprint_lod(material.emissive_texture, t, va, vb, vc));
     texel.position = w.x * va.position + w.y * vb.position + w.z * vc.position;
-    texel.area = textureLoad(areas, vec2<u32>(x, y), 0).x;
+    texel.area = covered.x;
     texel.normal = normal;
     texel.face_normal = face;
     texel.triangle = t;

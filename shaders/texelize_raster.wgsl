@@ -7,13 +7,15 @@
 // (depth = distance, so a texel whose centre lies inside a triangle always
 // wins) and its clamped barycentrics: border texels get valid data, never
 // black. `fs_area` adds up the exact area of texel-square ∩ triangle, scaled
-// to world units, with additive blending.
+// to world units, with additive blending. Where a texel's data comes from for
+// texels on a chart's border is decided by texelize_attributes, which knows
+// how much of each texel the chart covers.
 
 struct RasterParams {
     size: vec2f,       // atlas width, height in texels
     dilation: f32,     // texels; half the texel diagonal reaches every overlapped texel
     max_miter: f32,    // cap on how far a sharp corner moves, texels
-    inset: f32,        // how far inside the chart border texels take their data, texels
+    _inset: f32,
     _pad0: f32,
     _pad1: f32,
     _pad2: f32,
@@ -83,47 +85,9 @@ fn vs_dilated(@builtin(vertex_index) vertex: u32) -> VsOut {
     return out;
 }
 
-// Barycentric weights of the point of triangle (a, b, c) closest to p
-// (Ericson, Real-Time Collision Detection, 5.1.5).
-fn closest_barycentric(p: vec2f, a: vec2f, b: vec2f, c: vec2f) -> vec3f {
-    let ab = b - a;
-    let ac = c - a;
-    let ap = p - a;
-    let d1 = dot(ab, ap);
-    let d2 = dot(ac, ap);
-    if (d1 <= 0.0 && d2 <= 0.0) { return vec3f(1.0, 0.0, 0.0); }
-    let bp = p - b;
-    let d3 = dot(ab, bp);
-    let d4 = dot(ac, bp);
-    if (d3 >= 0.0 && d4 <= d3) { return vec3f(0.0, 1.0, 0.0); }
-    let vc = d1 * d4 - d3 * d2;
-    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
-        let v = d1 / (d1 - d3);
-        return vec3f(1.0 - v, v, 0.0);
-    }
-    let cp = p - c;
-    let d5 = dot(ab, cp);
-    let d6 = dot(ac, cp);
-    if (d6 >= 0.0 && d5 <= d6) { return vec3f(0.0, 0.0, 1.0); }
-    let vb = d5 * d2 - d1 * d6;
-    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
-        let w = d2 / (d2 - d6);
-        return vec3f(1.0 - w, 0.0, w);
-    }
-    let va = d3 * d6 - d5 * d4;
-    if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
-        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return vec3f(0.0, 1.0 - w, w);
-    }
-    let denom = 1.0 / (va + vb + vc);
-    let v = vb * denom;
-    let w = vc * denom;
-    return vec3f(1.0 - v - w, v, w);
-}
-
 struct NearestOut {
     @location(0) triangle: u32,   // triangle id + 1; 0 = not covered
-    @location(1) bary: vec2f,     // weights of corners b and c
+    @location(1) bary: vec4f,     // weights of corners b and c of the nearest point; its distance (texels)
     @builtin(frag_depth) depth: f32,
 }
 
@@ -136,22 +100,9 @@ fn fs_nearest(in: VsOut) -> NearestOut {
     if (distance > params.dilation) {
         discard;
     }
-    // A texel whose centre lies outside the triangle takes its data from a
-    // point half a texel inside the chart, not from the edge itself: an edge
-    // point lies exactly on the geometry that meets it (a wall on a floor)
-    // and would see half its sky cut off.
-    var weights = w;
-    // (Centres on an edge shared by two triangles are off by f32 rounding
-    // only; they keep their own position.)
-    if (distance > 1e-3) {
-        // Straight on from the texel centre through its nearest point, kept
-        // inside the triangle.
-        let target_point = q + (q - p) * (params.inset / distance);
-        weights = closest_barycentric(target_point, in.a, in.b, in.c);
-    }
     var out: NearestOut;
     out.triangle = in.triangle + 1u;
-    out.bary = weights.yz;
+    out.bary = vec4f(w.yz, distance, 0.0);
     out.depth = distance / (2.0 * params.dilation);
     return out;
 }
@@ -205,7 +156,9 @@ fn covered_area(p: vec2f, a: vec2f, b: vec2f, c: vec2f) -> f32 {
     return abs(twice) * 0.5;
 }
 
+// Covered world area (x) and covered share of the texel square (y).
 @fragment
 fn fs_area(in: VsOut) -> @location(0) vec4f {
-    return vec4f(covered_area(in.clip.xy, in.a, in.b, in.c) * in.ratio, 0.0, 0.0, 0.0);
+    let covered = covered_area(in.clip.xy, in.a, in.b, in.c);
+    return vec4f(covered * in.ratio, covered, 0.0, 0.0);
 }

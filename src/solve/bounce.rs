@@ -86,7 +86,8 @@ pub struct BounceStats {
     pub unshot_fraction: f64,
     /// Share of the shot power that landed on the scene (the rest escaped).
     pub closure: f64,
-    /// Ambient term added to every texel for the light not yet shot, L_lm RGB.
+    /// Mean ambient term added for the light not yet shot when a budget
+    /// stopped the pass (zero when it converged), L_lm RGB.
     pub ambient: [f32; 3],
     pub trace: Vec<TracePoint>,
 }
@@ -151,6 +152,7 @@ struct Resources {
     unshot: wgpu::Buffer,
     lightmap: wgpu::Buffer,
     patch_power: wgpu::Buffer,
+    patch_origin: wgpu::Buffer,
     chosen: wgpu::Buffer,
     shooters: wgpu::Buffer,
     stats: wgpu::Buffer,
@@ -317,9 +319,23 @@ pub fn run(
         Some(coverage) => covered_share(texels, &remaining, coverage),
         None => measured_closure(received_total, shot_total),
     };
-    let ambient = ambient_term(last.unshot, closure, mean_albedo, total_area).map(|a| a as f32);
-    for (out, v) in lightmap.iter_mut().zip(values) {
-        *out = [0, 1, 2].map(|c| v[c] + ambient[c]);
+    // Converged, what is left is below the tolerance: reported, not spread.
+    // Stopped by a budget, it is spread as the ambient term, over the texels
+    // in proportion to how much of their hemisphere the scene covers (a
+    // texel under open sky gets none of it).
+    let ambient = if stopped_by == "converged" {
+        [0.0; 3]
+    } else {
+        ambient_term(last.unshot, closure, mean_albedo, total_area).map(|a| a as f32)
+    };
+    let weight = |i: usize| match coverage {
+        Some(c) if closure > 0.0 => (c[i] as f64 / closure) as f32,
+        Some(_) => 0.0,
+        None => 1.0,
+    };
+    for (i, (out, v)) in lightmap.iter_mut().zip(values).enumerate() {
+        let w = weight(i);
+        *out = [0, 1, 2].map(|c| v[c] + ambient[c] * w);
     }
     let unshot_fraction = trace.last().map_or(0.0, |t| t.unshot_fraction);
     Ok(BounceStats {
@@ -400,6 +416,7 @@ fn resources(
         unshot: gpu.storage_buffer("solve_shoot unshot", unshot, wgpu::BufferUsages::COPY_SRC),
         lightmap: gpu.storage_buffer("solve_shoot lightmap", &lightmap4, wgpu::BufferUsages::COPY_SRC),
         patch_power: gpu.storage_buffer("solve_patch_power power", &vec![[0f32; 4]; patches.patches.len()], none),
+        patch_origin: gpu.storage_buffer("solve_patch_power origins", &vec![[0f32; 4]; patches.patches.len()], none),
         chosen: gpu.storage_buffer("solve_select chosen", &vec![0u32; patches.patches.len()], none),
         shooters: gpu.storage_buffer("solve_select shooters", &[Shooter::default(); MAX_SHOOTERS as usize], none),
         stats: gpu.storage_buffer("solve_select stats", &[GpuStats::default()], wgpu::BufferUsages::COPY_SRC),
@@ -423,16 +440,17 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             gpu::storage_entry(1, true, compute),
             gpu::storage_entry(2, true, compute),
             gpu::storage_entry(3, true, compute),
-            // 4: unshot radiance per texel, 5: per-patch power (written)
+            // 4: unshot radiance per texel, 5: per-patch power, 6: per-patch origins (written)
             gpu::storage_entry(4, true, compute),
             gpu::storage_entry(5, false, compute),
+            gpu::storage_entry(6, false, compute),
         ],
     );
     let power_group = gpu::bind_buffers(
         gpu,
         "solve_patch_power",
         &power_layout,
-        &[patch_params, &r.texels, &r.patches, &r.members, &r.unshot, &r.patch_power],
+        &[patch_params, &r.texels, &r.patches, &r.members, &r.unshot, &r.patch_power, &r.patch_origin],
     );
 
     let select_layout = layout(
@@ -446,13 +464,15 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             gpu::storage_entry(3, false, compute),
             gpu::storage_entry(4, false, compute),
             gpu::storage_entry(5, false, compute),
+            // 6: per-patch origins
+            gpu::storage_entry(6, true, compute),
         ],
     );
     let select_group = gpu::bind_buffers(
         gpu,
         "solve_select",
         &select_layout,
-        &[&r.params, &r.patches, &r.patch_power, &r.chosen, &r.shooters, &r.stats],
+        &[&r.params, &r.patches, &r.patch_power, &r.chosen, &r.shooters, &r.stats, &r.patch_origin],
     );
 
     let vertex = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;

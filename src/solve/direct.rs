@@ -26,11 +26,22 @@ const MAX_BATCH: u32 = 256;
 /// Memory the shadow-map array of one batch may take.
 const DEPTH_BUDGET_BYTES: u64 = 128 << 20;
 
-/// Bias terms in shadow-map texels (world size 2R/S).
+/// Receivers test a point this far off their surface, in shadow-map texels
+/// (world size 2R/S): curved surfaces are not quite their tangent plane.
 const NORMAL_OFFSET_TEXELS: f32 = 1.0;
-const CONSTANT_BIAS_TEXELS: f32 = 0.5;
-const SLOPE_BIAS_TEXELS: f32 = 1.0;
-const MAX_SLOPE: f32 = 10.0;
+/// Depth tolerance, shadow-map texels. The receiver's own plane is carried to
+/// each stored texel centre exactly (receiver-plane depth bias), so this only
+/// absorbs rounding; anything larger lets light through geometry that meets
+/// the receiver.
+const CONSTANT_BIAS_TEXELS: f32 = 0.05;
+/// A stored depth within this many shadow-map texels (in depth) of the
+/// receiver's plane, carried to the stored texel's centre, is that plane: the
+/// receiver seeing itself. It absorbs curvature and rasterization within the
+/// filter's reach.
+const PLANE_TOLERANCE_TEXELS: f32 = 0.5;
+/// Largest receiver-plane slope followed: planes lit within about 0.6° of
+/// grazing are treated as lit at that angle.
+const MAX_SLOPE: f32 = 100.0;
 
 /// What the direct pass did, for the report.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -58,8 +69,8 @@ struct DirectParams {
     tiles_per_row: u32,
     normal_offset: f32,
     constant_bias: f32,
-    slope_bias: f32,
     max_slope: f32,
+    plane_tolerance: f32,
     _pad: [u32; 3],
 }
 
@@ -136,8 +147,8 @@ pub fn run(
         tiles_per_row: tiles_per_row_value,
         normal_offset: NORMAL_OFFSET_TEXELS * texel_world,
         constant_bias: CONSTANT_BIAS_TEXELS * texel_world,
-        slope_bias: SLOPE_BIAS_TEXELS * texel_world,
         max_slope: MAX_SLOPE,
+        plane_tolerance: PLANE_TOLERANCE_TEXELS / size as f32,
         _pad: [0; 3],
     };
 

@@ -123,29 +123,30 @@ fn patch(texels: &TexelSet, members: &[u32], first: u32, texel_size: f32) -> Pat
     let largest = members.iter().map(|&i| texels.texels[i as usize].area).fold(0.0f32, f32::max);
     let whole: Vec<u32> =
         members.iter().copied().filter(|&i| texels.texels[i as usize].area >= 0.9 * largest).collect();
-    let (c, u, v) = affine_fit(texels, if whole.len() >= 3 { &whole } else { members })
+    let first_xy = (first_texel.x(texels.width) as f64, first_texel.y(texels.width) as f64);
+    let (c, mean_xy, u, v) = affine_fit(texels, if whole.len() >= 3 { &whole } else { members })
         .or_else(|| affine_fit(texels, members))
         .unwrap_or_else(|| {
             // A single texel, row or column: one texel's sides in the tangent plane.
             let t = normal.as_dvec3().any_orthonormal_vector() * texel_size as f64;
-            (centroid.as_dvec3(), t, normal.as_dvec3().cross(t))
+            (first_texel.position().as_dvec3(), first_xy, t, normal.as_dvec3().cross(t))
         });
-    // The parallelogram spans every member's position, half a texel beyond
-    // the outermost ones: for border texels (inset half a texel) that is the
-    // chart's edge, so neighbouring patches tile the surface.
-    let gram = [u.dot(u), u.dot(v), v.dot(v)];
-    let det = gram[0] * gram[2] - gram[1] * gram[1];
-    let (mut lo_a, mut hi_a, mut lo_b, mut hi_b) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for &i in members {
-        let d = texels.texels[i as usize].position().as_dvec3() - c;
-        let (du, dv) = (d.dot(u), d.dot(v));
-        let a = (du * gram[2] - dv * gram[1]) / det;
-        let b = (dv * gram[0] - du * gram[1]) / det;
-        (lo_a, hi_a, lo_b, hi_b) = (lo_a.min(a), hi_a.max(a), lo_b.min(b), hi_b.max(b));
+    // The parallelogram is the image of the atlas cells the patch's surface
+    // texels occupy: patches share no texel, so their parallelograms do not
+    // overlap and together shoot exactly their light. At a chart's border it
+    // reaches up to a texel beyond the surface; the shot scales by area.
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for &i in members.iter().filter(|&&i| texels.texels[i as usize].area > 0.0) {
+        let t = &texels.texels[i as usize];
+        let (x, y) = (t.x(texels.width) as f64, t.y(texels.width) as f64);
+        (x0, x1, y0, y1) = (x0.min(x - 0.5), x1.max(x + 0.5), y0.min(y - 0.5), y1.max(y + 0.5));
     }
-    let rect_centre = c + u * ((lo_a + hi_a) * 0.5) + v * ((lo_b + hi_b) * 0.5);
-    let half_u = u * ((hi_a - lo_a) * 0.5 + 0.5);
-    let half_v = v * ((hi_b - lo_b) * 0.5 + 0.5);
+    if x0 > x1 {
+        (x0, x1, y0, y1) = (first_xy.0 - 0.5, first_xy.0 + 0.5, first_xy.1 - 0.5, first_xy.1 + 0.5);
+    }
+    let rect_centre = c + u * ((x0 + x1) * 0.5 - mean_xy.0) + v * ((y0 + y1) * 0.5 - mean_xy.1);
+    let half_u = u * ((x1 - x0) * 0.5);
+    let half_v = v * ((y1 - y0) * 0.5);
     Patch {
         position: centroid.to_array(),
         area: area as f32,
@@ -161,8 +162,8 @@ fn patch(texels: &TexelSet, members: &[u32], first: u32, texel_size: f32) -> Pat
 }
 
 /// Least-squares P(x, y) ≈ c + U (x − x̄) + V (y − ȳ) over `members`:
-/// (c, U, V), or `None` when they do not span two atlas directions.
-fn affine_fit(texels: &TexelSet, members: &[u32]) -> Option<(DVec3, DVec3, DVec3)> {
+/// (c, (x̄, ȳ), U, V), or `None` when they do not span two atlas directions.
+fn affine_fit(texels: &TexelSet, members: &[u32]) -> Option<(DVec3, (f64, f64), DVec3, DVec3)> {
     let width = texels.width;
     let count = members.len() as f64;
     let (mut mx, mut my, mut mp) = (0.0f64, 0.0f64, DVec3::ZERO);
@@ -191,7 +192,7 @@ fn affine_fit(texels: &TexelSet, members: &[u32]) -> Option<(DVec3, DVec3, DVec3
     }
     let u = (sxp * syy - syp * sxy) / det;
     let v = (syp * sxx - sxp * sxy) / det;
-    (u.cross(v).length() > 0.0).then_some((mp, u, v))
+    (u.cross(v).length() > 0.0).then_some((mp, (mx, my), u, v))
 }
 
 #[cfg(test)]

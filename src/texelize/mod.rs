@@ -93,7 +93,9 @@ struct GpuTriangle {
     corners: [u32; 3],
     material: u32,
     face_normal: [f32; 3],
-    _pad: u32,
+    /// Bit k set: edge k → k+1 is on its chart's border (no other triangle
+    /// of the chart shares it).
+    border_edges: u32,
 }
 
 /// The whole scene flattened for the GPU, with per-triangle facts the CPU keeps.
@@ -132,7 +134,22 @@ fn flatten(scene: &Scene, atlas: &Atlas) -> Mesh {
             });
         }
         let material = primitive.material.map_or(default_material, |m| m as u32);
+        // Edges used by one triangle only are chart borders (the unwrap splits
+        // vertices along seams, so a shared edge shares its vertex indices).
+        let mut edge_uses: std::collections::HashMap<(u32, u32), u32> = std::collections::HashMap::new();
+        for corner in unwrapped.indices.chunks_exact(3) {
+            for k in 0..3 {
+                let (a, b) = (corner[k], corner[(k + 1) % 3]);
+                *edge_uses.entry((a.min(b), a.max(b))).or_default() += 1;
+            }
+        }
         for (t, corner) in unwrapped.indices.chunks_exact(3).enumerate() {
+            let border_edges = (0..3)
+                .filter(|&k| {
+                    let (a, b) = (corner[k], corner[(k + 1) % 3]);
+                    edge_uses[&(a.min(b), a.max(b))] == 1
+                })
+                .fold(0u32, |mask, k| mask | 1 << k);
             let face_normal = primitive.face_normal(t);
             let [a, b, c] = [0, 1, 2]
                 .map(|k| Vec3::from(primitive.positions[unwrapped.vertices[corner[k] as usize].xref as usize]));
@@ -149,7 +166,7 @@ fn flatten(scene: &Scene, atlas: &Atlas) -> Mesh {
                 corners: [base + corner[0], base + corner[1], base + corner[2]],
                 material,
                 face_normal: face_normal.to_array(),
-                _pad: 0,
+                border_edges,
             });
             mesh.triangle_primitive.push(p as u32);
             mesh.triangle_chart.push(unwrapped.vertices[corner[0] as usize].chart);

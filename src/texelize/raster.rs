@@ -27,8 +27,7 @@ struct RasterParams {
     size: [f32; 2],
     dilation: f32,
     max_miter: f32,
-    inset: f32,
-    _pad: [f32; 3],
+    _pad: [f32; 4],
 }
 
 /// Mirrors `AttributeParams` in texelize_attributes.wgsl.
@@ -39,6 +38,8 @@ struct AttributeParams {
     height: u32,
     first_row: u32,
     rows: u32,
+    inset: f32,
+    _pad: [f32; 3],
 }
 
 struct Targets {
@@ -66,8 +67,8 @@ fn target(gpu: &Gpu, label: &str, width: u32, height: u32, format: wgpu::Texture
 pub(super) fn texelize(gpu: &Gpu, mesh: &Mesh, materials: &Materials, width: u32, height: u32) -> Result<Vec<Texel>> {
     let targets = Targets {
         triangle: target(gpu, "texelize triangle ids", width, height, wgpu::TextureFormat::R32Uint),
-        bary: target(gpu, "texelize barycentrics", width, height, wgpu::TextureFormat::Rg32Float),
-        area: target(gpu, "texelize areas", width, height, wgpu::TextureFormat::R32Float),
+        bary: target(gpu, "texelize barycentrics", width, height, wgpu::TextureFormat::Rgba32Float),
+        area: target(gpu, "texelize areas", width, height, wgpu::TextureFormat::Rg32Float),
         depth: target(gpu, "texelize distance", width, height, wgpu::TextureFormat::Depth32Float),
     };
     let corners = gpu.storage_buffer("texelize corners", &mesh.corners, wgpu::BufferUsages::empty());
@@ -78,13 +79,7 @@ pub(super) fn texelize(gpu: &Gpu, mesh: &Mesh, materials: &Materials, width: u32
 fn rasterize(gpu: &Gpu, mesh: &Mesh, corners: &wgpu::Buffer, width: u32, height: u32, targets: &Targets) {
     let params = gpu.uniform_buffer(
         "texelize_raster params",
-        &RasterParams {
-            size: [width as f32, height as f32],
-            dilation: DILATION,
-            max_miter: MAX_MITER,
-            inset: BORDER_INSET,
-            _pad: [0.0; 3],
-        },
+        &RasterParams { size: [width as f32, height as f32], dilation: DILATION, max_miter: MAX_MITER, _pad: [0.0; 4] },
     );
     let ratios = gpu.storage_buffer("texelize area ratios", &mesh.area_ratio, wgpu::BufferUsages::empty());
     let stages = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
@@ -132,7 +127,7 @@ fn rasterize(gpu: &Gpu, mesh: &Mesh, corners: &wgpu::Buffer, width: u32, height:
         };
     let nearest = pipeline(
         "fs_nearest",
-        &[Some(wgpu::TextureFormat::R32Uint.into()), Some(wgpu::TextureFormat::Rg32Float.into())],
+        &[Some(wgpu::TextureFormat::R32Uint.into()), Some(wgpu::TextureFormat::Rgba32Float.into())],
         Some(wgpu::DepthStencilState {
             format: wgpu::TextureFormat::Depth32Float,
             depth_write_enabled: Some(true),
@@ -149,7 +144,7 @@ fn rasterize(gpu: &Gpu, mesh: &Mesh, corners: &wgpu::Buffer, width: u32, height:
     let area = pipeline(
         "fs_area",
         &[Some(wgpu::ColorTargetState {
-            format: wgpu::TextureFormat::R32Float,
+            format: wgpu::TextureFormat::Rg32Float,
             blend: Some(wgpu::BlendState { color: additive, alpha: additive }),
             write_mask: wgpu::ColorWrites::ALL,
         })],
@@ -242,9 +237,9 @@ fn interpolate(
             gpu::uniform_entry(0, compute),
             // 1: nearest triangle id + 1 per texel
             texture_entry(1, wgpu::TextureSampleType::Uint),
-            // 2: barycentrics of corners b, c
+            // 2: barycentrics (corners b, c) of the nearest point and its distance
             texture_entry(2, unfilterable),
-            // 3: covered world area
+            // 3: covered world area and covered share of the texel
             texture_entry(3, unfilterable),
             // 4: vertices, 5: triangles, 6: materials
             gpu::storage_entry(4, true, compute),
@@ -266,8 +261,10 @@ fn interpolate(
     let mut first_row = 0;
     while first_row < height {
         let rows = rows_per_band.min(height - first_row);
-        let params =
-            gpu.uniform_buffer("texelize_attributes params", &AttributeParams { width, height, first_row, rows });
+        let params = gpu.uniform_buffer(
+            "texelize_attributes params",
+            &AttributeParams { width, height, first_row, rows, inset: BORDER_INSET, _pad: [0.0; 3] },
+        );
         let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("texelize_attributes"),
             layout: &layout,
