@@ -61,10 +61,10 @@ fn the_sun_casts_the_post_shadow_away_from_itself() {
 fn error_against_reference(baked: &bake::Baked, estimates: &[[f64; 3]], sample: &[usize]) -> f64 {
     let (mut squared, mut sum) = (0.0, 0.0);
     for (&i, reference) in sample.iter().zip(estimates) {
-        for c in 0..3 {
-            let d = baked.solution.lightmap[i][c] as f64 - reference[c];
+        for (&baked, &reference) in baked.solution.lightmap[i].iter().zip(reference) {
+            let d = baked as f64 - reference;
             squared += d * d;
-            sum += reference[c];
+            sum += reference;
         }
     }
     let n = (sample.len() * 3) as f64;
