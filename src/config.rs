@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use crate::environment::LightMode;
 use crate::export::ExportOptions;
 use crate::progress::LogMode;
+use crate::report::ReportOptions;
 use crate::solve::SolveOptions;
 use crate::unwrap::UnwrapOptions;
 
@@ -55,4 +56,6 @@ pub struct Config {
     pub adapter: Option<String>,
     pub bake: BakeOptions,
     pub log: LogMode,
+    /// What goes into report.json besides the bake, and whether to plot.
+    pub report: ReportOptions,
 }

@@ -83,8 +83,13 @@ pub struct BounceStats {
     pub stopped_by: String,
     /// Unshot power over the power put in when it stopped.
     pub unshot_fraction: f64,
-    /// Share of the shot power that landed on the scene (the rest escaped).
+    /// Closure the ambient term used: the share of the unshot power that
+    /// would land on the scene (from the direct pass's coverage, or
+    /// `shot_closure` without one).
     pub closure: f64,
+    /// Share of the power actually shot that landed on the scene (luminance,
+    /// summed on the GPU over every batch; 1 when nothing was shot).
+    pub shot_closure: f64,
     /// Ambient term added to every texel for the light not yet shot, L_lm RGB.
     pub ambient: [f32; 3],
     pub trace: Vec<TracePoint>,
@@ -330,6 +335,7 @@ pub fn run(
         stopped_by,
         unshot_fraction,
         closure,
+        shot_closure: measured_closure(received_total, shot_total),
         ambient,
         trace,
     })

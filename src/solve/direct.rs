@@ -42,6 +42,10 @@ pub struct DirectStats {
     /// Texels that some light in front of them does not reach (geometry in the way).
     pub shadowed_texels: u64,
     pub seconds: f64,
+    /// Power the pass delivered to the texels, Σ E·A, RGB (irradiance × m²;
+    /// W when the environment is in W/(m²·sr)). The report's energy balance
+    /// separates direct from bounced light with it.
+    pub power_received: [f64; 3],
 }
 
 /// Mirrors `DirectParams` in common.wgsl.
@@ -279,6 +283,12 @@ pub fn run(
         evaluations: total * texel_count as u64,
         shadowed_texels: covered.iter().filter(|c| c[0] > 0.0).count() as u64,
         seconds: start.elapsed().as_secs_f64(),
+        power_received: texels.texels.iter().zip(&sums).fold([0.0; 3], |mut sum, (t, e)| {
+            for (s, e) in sum.iter_mut().zip(e) {
+                *s += *e as f64 * t.area as f64;
+            }
+            sum
+        }),
     };
     Ok(Direct {
         irradiance: sums.into_iter().map(|e| [e[0], e[1], e[2]]).collect(),
