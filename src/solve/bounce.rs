@@ -87,8 +87,9 @@ pub struct BounceStats {
     /// would land on the scene (from the direct pass's coverage, or
     /// `shot_closure` without one).
     pub closure: f64,
-    /// Share of the power actually shot that landed on the scene (luminance,
-    /// summed on the GPU over every batch; 1 when nothing was shot).
+    /// Power that landed on the scene over the power shot (luminance, summed
+    /// on the GPU over every batch; 1 when nothing was shot). Not capped: above
+    /// 1 the form factors gave out more than was shot.
     pub shot_closure: f64,
     /// Ambient term added to every texel for the light not yet shot, L_lm RGB.
     pub ambient: [f32; 3],
@@ -335,7 +336,7 @@ pub fn run(
         stopped_by,
         unshot_fraction,
         closure,
-        shot_closure: measured_closure(received_total, shot_total),
+        shot_closure: if shot_total > 0.0 { received_total / shot_total } else { 1.0 },
         ambient,
         trace,
     })
