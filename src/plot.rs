@@ -61,7 +61,9 @@ fn draw(scene: &SceneReport, svg: &mut String) -> Result<(), Box<dyn std::error:
     let t_max = trace.iter().map(|t| t.seconds).fold(0.0f64, f64::max).max(1e-3) * 1.05;
     let values = series.iter().flat_map(|s| s.2.iter().map(|p| p.1));
     let (lo, hi) = values.fold((f64::INFINITY, 0.0f64), |(lo, hi), v| (lo.min(v), hi.max(v)));
-    let (lo, hi) = (10f64.powf(lo.log10().floor()), 10f64.powf(hi.log10().ceil()).max(lo * 10.0));
+    // Whole decades, with a little give so that 1.0000001 stays under 10⁰.
+    let lo = 10f64.powf((lo.log10() + 1e-6).floor());
+    let hi = 10f64.powf((hi.log10() - 1e-6).ceil()).max(lo * 10.0);
 
     let caption = format!(
         "{title} ({} shots, stopped: {}, {:.2}% unshot)",
