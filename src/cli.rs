@@ -12,7 +12,7 @@ use crate::config::{BakeOptions, Config, EnvironmentOptions};
 use crate::environment::LightMode;
 use crate::export::ExportOptions;
 use crate::progress::LogMode;
-use crate::report::ReportOptions;
+use crate::report::{ReferenceCheck, ReportOptions};
 use crate::solve::{BounceOptions, SolveOptions};
 use crate::unwrap::{Backend, UnwrapOptions};
 
@@ -126,6 +126,15 @@ pub struct Args {
     /// Also write OUT/<name>.convergence.svg: unshot power and error estimate against time (log scale)
     #[arg(long)]
     pub plot: bool,
+
+    /// Estimate N texels with the CPU reference path tracer before solving, and record the bake's
+    /// error at them (relative RMSE) at every point of the convergence trace (slow: N × the samples)
+    #[arg(long, value_name = "N")]
+    pub reference: Option<usize>,
+
+    /// Paths per texel for --reference (its noise falls as 1/√samples)
+    #[arg(long, value_name = "N", default_value_t = 256)]
+    pub reference_samples: u32,
 }
 
 #[derive(Subcommand, Debug)]
@@ -211,6 +220,12 @@ impl Args {
         if !(1..=1 << 20).contains(&self.patches) {
             bail!("--patches must be between 1 and 1048576, not {}", self.patches);
         }
+        if self.reference.is_some_and(|n| !(1..=65536).contains(&n)) {
+            bail!("--reference must be between 1 and 65536 texels");
+        }
+        if !(1..=1 << 20).contains(&self.reference_samples) {
+            bail!("--reference-samples must be between 1 and 1048576, not {}", self.reference_samples);
+        }
         if !self.exposure.is_finite() {
             bail!("--exposure must be finite");
         }
@@ -250,6 +265,13 @@ impl Args {
                     ..SolveOptions::default()
                 },
                 export: ExportOptions { exposure: self.exposure, ..ExportOptions::default() },
+                reference: self.reference.map(|texels| ReferenceCheck {
+                    texels,
+                    samples: self.reference_samples,
+                    environment: None,
+                    env_rotation_degrees: self.env_rotation,
+                    env_intensity: self.env_intensity,
+                }),
             },
             log,
             report: ReportOptions { arguments: Vec::new(), plot: self.plot },

@@ -40,6 +40,8 @@ pub struct BakeOptions {
     pub unwrap: UnwrapOptions,
     pub solve: SolveOptions,
     pub export: ExportOptions,
+    /// `--reference`: estimate some texels with the CPU reference and trace the error at them.
+    pub reference: Option<crate::report::ReferenceCheck>,
 }
 
 /// Everything one `bake` run needs.

@@ -52,6 +52,8 @@ pub struct Baked {
     pub solution: Solution,
     pub stages: Vec<StageTime>,
     pub notices: Vec<String>,
+    /// `--reference`: the bake's error against the CPU reference.
+    pub reference: Option<report::ReferenceReport>,
 }
 
 /// Times `f` as stage `name` of `scene` and measures its memory, reporting to `progress`.
@@ -110,8 +112,25 @@ pub fn bake_scene(
         let summary = format!("{} texels covering {:.4} m²", texels.texels.len(), texels.total_area());
         Ok((texels, summary))
     })?;
+    let mut solve_options = options.solve.clone();
+    let mut reference = None;
+    if let Some(check) = &options.reference {
+        let start = Instant::now();
+        let (probes, noise) = stage(gpu, progress, &mut stages, &name, "reference", |_| {
+            let (probes, noise) = report::reference_probes(&scene, &texels, check);
+            let summary = format!(
+                "{} texels × {} paths on the CPU, noise {:.2}%",
+                probes.texels.len(),
+                check.samples,
+                noise * 100.0
+            );
+            Ok(((probes, noise), summary))
+        })?;
+        reference = Some((std::sync::Arc::new(probes), noise, start.elapsed().as_secs_f64()));
+        solve_options.bounce.probes = reference.as_ref().map(|r| r.0.clone());
+    }
     let solution = stage(gpu, progress, &mut stages, &name, "solve", |progress| {
-        let solution = solve::run(gpu, &scene, &texels, lights, atlas.texels_per_unit, &options.solve, &mut |d, t| {
+        let solution = solve::run(gpu, &scene, &texels, lights, atlas.texels_per_unit, &solve_options, &mut |d, t| {
             progress.update(d, t)
         })?;
         let mut parts = Vec::new();
@@ -135,7 +154,14 @@ pub fn bake_scene(
         let summary = if parts.is_empty() { "nothing to solve".to_string() } else { parts.join("; ") };
         Ok((solution, summary))
     })?;
-    Ok(Baked { scene, atlas, texels, solution, stages, notices })
+    let reference = reference.map(|(probes, noise, seconds)| report::ReferenceReport {
+        texels: probes.texels.len(),
+        samples: options.reference.as_ref().map_or(0, |r| r.samples),
+        seconds,
+        noise,
+        error: probes.relative_rmse(probes.texels.iter().map(|&i| solution.lightmap[i as usize].map(|v| v as f64))),
+    });
+    Ok(Baked { scene, atlas, texels, solution, stages, notices, reference })
 }
 
 /// Loads the environment and extracts its lights.
@@ -213,6 +239,13 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
         None => None,
     };
 
+    // `--reference` traces against the full-resolution map, not the light set.
+    let mut bake_options = config.bake.clone();
+    if let (Some(check), Some(path)) = (&mut bake_options.reference, &config.environment) {
+        let load = environment::EnvLoadOptions { clamp_nonfinite: config.environment_options.clamp_nonfinite };
+        check.environment = Some(std::sync::Arc::new(EnvironmentMap::load(path, &load)?.map));
+    }
+
     let mut scenes = Vec::new();
     for input in &config.inputs {
         let mut stages = Vec::new();
@@ -228,7 +261,7 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
             bail!("input '{}': nothing lights the scene: give --env or use emissive materials", input.display());
         }
         let lights = environment.as_ref().map(|(lights, _)| lights);
-        let baked = bake_scene(gpu, scene, lights, &config.bake, progress)
+        let baked = bake_scene(gpu, scene, lights, &bake_options, progress)
             .with_context(|| format!("input '{}'", input.display()))?;
         stages.extend(baked.stages.iter().cloned());
         let exported = stage(gpu, progress, &mut stages, &baked.scene.name, "export", |_| {
@@ -325,5 +358,6 @@ fn scene_report(
         direct: baked.solution.direct.clone(),
         bounce: baked.solution.bounce.clone(),
         energy: report::primitive_energy(&baked.texels, &baked.solution, &keys, &names),
+        reference: baked.reference.clone(),
     }
 }

@@ -5,8 +5,9 @@
 //! Plotted against seconds since the bounce pass started, on a log axis:
 //! the unshot power fraction (unshot power over the power put in) and the
 //! error estimate (the ambient term for the unshot light over the mean
-//! gathered, see `solve::TracePoint`). No reference solution is computed by
-//! the bake, so the error shown is the solver's own estimate.
+//! gathered, see `solve::TracePoint`), and with `--reference` the true
+//! error: the relative RMSE against the CPU reference at the probe texels,
+//! with the reference's own noise as a dashed line (the floor it can resolve).
 
 use anyhow::{Result, anyhow};
 use plotters::prelude::*;
@@ -46,7 +47,7 @@ fn draw(scene: &SceneReport, svg: &mut String) -> Result<(), Box<dyn std::error:
     };
     let trace = &bounce.trace;
     let at = |v: f64| if v.is_finite() { v.max(FLOOR) } else { FLOOR };
-    let series: [Series; 2] = [
+    let mut series: Vec<Series> = vec![
         (
             "unshot power fraction",
             RGBColor(31, 119, 180),
@@ -59,6 +60,16 @@ fn draw(scene: &SceneReport, svg: &mut String) -> Result<(), Box<dyn std::error:
         ),
     ];
     let t_max = trace.iter().map(|t| t.seconds).fold(0.0f64, f64::max).max(1e-3) * 1.05;
+    let reference = scene.reference.as_ref().filter(|_| trace.iter().any(|t| t.reference_error.is_some()));
+    if let Some(reference) = reference {
+        let points = trace.iter().filter_map(|t| t.reference_error.map(|e| (t.seconds, at(e)))).collect();
+        series.push(("error against the CPU reference (relative RMSE)", RGBColor(44, 160, 44), points));
+        series.push((
+            "noise of the reference",
+            RGBColor(150, 150, 150),
+            vec![(0.0, at(reference.noise)), (t_max, at(reference.noise))],
+        ));
+    }
     let values = series.iter().flat_map(|s| s.2.iter().map(|p| p.1));
     let (lo, hi) = values.fold((f64::INFINITY, 0.0f64), |(lo, hi), v| (lo.min(v), hi.max(v)));
     // Whole decades, with a little give so that 1.0000001 stays under 10⁰.
@@ -88,7 +99,9 @@ fn draw(scene: &SceneReport, svg: &mut String) -> Result<(), Box<dyn std::error:
             .draw_series(LineSeries::new(points.iter().copied(), color.stroke_width(2)))?
             .label(label)
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
-        chart.draw_series(points.iter().map(|&p| Circle::new(p, 3, color.filled())))?;
+        if points.len() > 2 {
+            chart.draw_series(points.iter().map(|&p| Circle::new(p, 3, color.filled())))?;
+        }
     }
     chart
         .configure_series_labels()

@@ -207,6 +207,8 @@ pub struct SceneSummary {
     pub unshot_fraction: f64,
     /// Luminance of the area-weighted mean L_lm.
     pub mean_luminance: f64,
+    /// `--reference`: relative RMSE against the CPU reference, its noise, and the texel count.
+    pub reference: Option<crate::report::ReferenceReport>,
     pub outputs: Vec<PathBuf>,
 }
 
@@ -236,6 +238,7 @@ impl Summary {
                     },
                     unshot_fraction: s.bounce.as_ref().map_or(0.0, |b| b.unshot_fraction),
                     mean_luminance: luminance(s.atlas.energy.mean_lightmap),
+                    reference: s.reference.clone(),
                     outputs: s.outputs.clone(),
                 })
                 .collect(),
@@ -283,6 +286,17 @@ impl Summary {
                     s.bounce.clone()
                 },
             );
+            if let Some(r) = &s.reference {
+                row(
+                    "error",
+                    format!(
+                        "{:.2}% RMSE against the CPU reference at {} texels (its noise {:.2}%)",
+                        r.error * 100.0,
+                        r.texels,
+                        r.noise * 100.0
+                    ),
+                );
+            }
             for (i, path) in s.outputs.iter().enumerate() {
                 row(if i == 0 { "wrote" } else { "" }, path.display().to_string());
             }

@@ -17,7 +17,11 @@ use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 use crate::config::Config;
+use crate::environment::EnvironmentMap;
 use crate::gpu::{AdapterDescription, Gpu};
+use crate::reference::{Reference, ReferenceOptions, ReferencePoint};
+use crate::scene::Scene;
+use crate::solve::bounce::Probes;
 use crate::solve::{BounceStats, Skipped, Solution, direct::DirectStats};
 use crate::texelize::TexelSet;
 
@@ -107,6 +111,9 @@ pub struct OptionsReport {
     pub dilation: u32,
     pub adapter: Option<String>,
     pub plot: bool,
+    /// `--reference`: texels estimated by the CPU reference (0: none).
+    pub reference_texels: usize,
+    pub reference_samples: u32,
 }
 
 impl OptionsReport {
@@ -135,6 +142,8 @@ impl OptionsReport {
             dilation: bake.export.dilation,
             adapter: config.adapter.clone(),
             plot: config.report.plot,
+            reference_texels: bake.reference.as_ref().map_or(0, |r| r.texels),
+            reference_samples: bake.reference.as_ref().map_or(0, |r| r.samples),
         }
     }
 }
@@ -182,6 +191,74 @@ pub struct SceneReport {
     pub bounce: Option<BounceStats>,
     /// Texel energy per baked primitive, in scene order.
     pub energy: Vec<PrimitiveEnergy>,
+    /// `--reference`: the bake's error against the CPU reference at some texels.
+    pub reference: Option<ReferenceReport>,
+}
+
+/// `--reference N`: N texels estimated by the CPU reference path tracer
+/// (`src/reference/`) before the solve; the trace records the bake's error
+/// at them as it converges.
+#[derive(Clone, Debug)]
+pub struct ReferenceCheck {
+    /// Texels to estimate (spread evenly over the covered texels with area).
+    pub texels: usize,
+    /// Paths per texel.
+    pub samples: u32,
+    /// The full-resolution environment (set by `run`), with its rotation and intensity.
+    pub environment: Option<std::sync::Arc<EnvironmentMap>>,
+    pub env_rotation_degrees: f32,
+    pub env_intensity: f32,
+}
+
+/// What `--reference` measured.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct ReferenceReport {
+    /// Texels estimated.
+    pub texels: usize,
+    /// Paths per texel.
+    pub samples: u32,
+    /// Time the reference took, seconds.
+    pub seconds: f64,
+    /// The reference's own noise: root mean squared standard error over the
+    /// mean reference value (errors below it cannot be resolved).
+    pub noise: f64,
+    /// Relative RMSE of the final lightmap at those texels.
+    pub error: f64,
+}
+
+/// Estimates `check.texels` texels of `texels` with the CPU reference:
+/// the probes the bounce pass reads back, and the reference's relative noise.
+pub fn reference_probes(scene: &Scene, texels: &TexelSet, check: &ReferenceCheck) -> (Probes, f64) {
+    let candidates: Vec<u32> =
+        (0..texels.texels.len() as u32).filter(|&i| texels.texels[i as usize].area > 0.0).collect();
+    let n = check.texels.min(candidates.len());
+    let chosen: Vec<u32> = (0..n).map(|k| candidates[(2 * k + 1) * candidates.len() / (2 * n)]).collect();
+    let points: Vec<ReferencePoint> = chosen
+        .iter()
+        .map(|&i| {
+            let t = &texels.texels[i as usize];
+            ReferencePoint { position: t.position, normal: t.normal }
+        })
+        .collect();
+    let options = ReferenceOptions {
+        samples: check.samples,
+        env_rotation_degrees: check.env_rotation_degrees,
+        env_intensity: check.env_intensity,
+        ..ReferenceOptions::default()
+    };
+    let estimates = Reference::new(scene, check.environment.as_deref(), &options).estimate(&points);
+    let (mut variance, mut sum) = (0.0f64, 0.0f64);
+    for e in &estimates {
+        for c in 0..3 {
+            if e.std_error[c].is_finite() {
+                variance += e.std_error[c].powi(2);
+            }
+            sum += e.lightmap[c];
+        }
+    }
+    let count = (3 * estimates.len()).max(1) as f64;
+    let noise = if sum > 0.0 { (variance / count).sqrt() / (sum / count) } else { 0.0 };
+    (Probes { texels: chosen, reference: estimates.iter().map(|e| e.lightmap).collect() }, noise)
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

@@ -262,3 +262,41 @@ fn plot_of_a_scene_without_a_bounce_pass_says_why() {
     let svg = std::fs::read_to_string(dir.path().join("out/sphere.convergence.svg")).unwrap();
     assert!(svg.contains("bounce pass left out"), "{svg}");
 }
+
+#[test]
+fn reference_traces_the_true_error_and_plots_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture("sphere_on_ground.glb");
+    let env = fixture("sky_sun.exr");
+    let args = [input.to_str().unwrap(), "--env", env.to_str().unwrap(), "-o", "out", "--max-atlas-size", "64"];
+    let extra = ["--lights", "64", "--reference", "24", "--reference-samples", "64", "--plot", "--log-format", "text"];
+    let output = bake(dir.path(), &[&args[..], &extra[..]].concat());
+    assert!(output.status.success(), "{}", stderr(&output));
+    assert!(stderr(&output).contains("RMSE against the CPU reference at 24 texels"), "the summary says the error");
+    let report: Report = serde_json::from_slice(&std::fs::read(dir.path().join("out/report.json")).unwrap()).unwrap();
+    let scene = &report.scenes[0];
+    let reference = scene.reference.as_ref().expect("--reference is reported");
+    let trace = &scene.bounce.as_ref().unwrap().trace;
+    let errors: Vec<f64> = trace.iter().map(|t| t.reference_error.expect("every trace point has it")).collect();
+    eprintln!("{reference:?}\nerror against the reference along the trace: {errors:.4?}");
+    assert_eq!((reference.texels, reference.samples), (24, 64));
+    assert!(errors.iter().all(|e| e.is_finite() && *e >= 0.0));
+    assert!(reference.error < errors[0], "bouncing light brings the bake closer to the reference");
+    assert!(reference.error < 0.1, "the converged bake is within 10% of the reference: {}", reference.error);
+    assert!((reference.error - errors.last().unwrap()).abs() < 0.02, "the final error continues the trace");
+    assert_eq!(
+        scene.stages.iter().map(|s| s.stage.as_str()).collect::<Vec<_>>(),
+        ["import", "unwrap", "texelize", "reference", "solve", "export"]
+    );
+    let svg = std::fs::read_to_string(dir.path().join("out/sphere_on_ground.convergence.svg")).unwrap();
+    assert!(svg.contains("error against the CPU reference") && svg.contains("noise of the reference"));
+
+    let schema = jsonschema::draft202012::new(&schema()).unwrap();
+    let value: Value = serde_json::from_slice(&std::fs::read(dir.path().join("out/report.json")).unwrap()).unwrap();
+    let found = errors_of(&schema, &value);
+    assert!(found.is_empty(), "{found:?}");
+}
+
+fn errors_of(validator: &jsonschema::Validator, report: &Value) -> Vec<String> {
+    errors(validator, report)
+}

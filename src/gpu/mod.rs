@@ -7,7 +7,7 @@
 mod readback;
 mod shaders;
 
-pub use readback::read_buffer;
+pub use readback::{read_buffer, read_elements};
 pub use shaders::Shader;
 
 use std::sync::atomic::{AtomicU64, Ordering};
