@@ -204,7 +204,9 @@ pub struct ReferenceCheck {
     pub texels: usize,
     /// Paths per texel.
     pub samples: u32,
-    /// The full-resolution environment (set by `run`), with its rotation and intensity.
+    /// The full-resolution environment, with its rotation and intensity. `run`
+    /// sets it; a library caller of `bake_scene` that bakes under an
+    /// environment must set it too (`None` traces against a black sky).
     pub environment: Option<std::sync::Arc<EnvironmentMap>>,
     pub env_rotation_degrees: f32,
     pub env_intensity: f32,
