@@ -1,9 +1,10 @@
 #!/usr/bin/env sh
 # Installs what bake needs at run time on Debian/Ubuntu: the Vulkan loader and
-# Mesa's drivers, whose lavapipe runs wgpu on the CPU when there is no GPU.
+# Mesa's drivers, whose lavapipe runs wgpu on the CPU when there is no GPU;
+# and make, which runs the build-step example (pipeline/Makefile) and its test.
 # Does nothing when they are already installed.
 set -eu
-packages="mesa-vulkan-drivers libvulkan1"
+packages="mesa-vulkan-drivers libvulkan1 make"
 missing=""
 for p in $packages; do
     dpkg -s "$p" >/dev/null 2>&1 || missing="$missing $p"

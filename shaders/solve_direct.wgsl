@@ -204,10 +204,16 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         let slope = vec2f(dot(face, m[0]), -dot(face, m[1])) / f_dot_w * (texel_world * 0.5 / params.radius);
         let receiver = Receiver(lifted.xy, lifted.z, bias, surface.xy, surface.z, 0.0, slope, tile, dot(face, w) > 0.0);
         let visible = light_visibility(receiver, light.direction.w, spin);
-        let weight = light.power.w * cos_n;
-        facing += weight;
         sum += light.power.rgb * cos_n * visible;
-        blocked += weight * (1.0 - visible);
+        // Coverage counts only directions in front of the geometric face: a
+        // light behind the facet but in front of the shading normal is cut
+        // off by the texel's own surface, which is no other surface seen (a
+        // lone faceted sphere sees nothing but sky).
+        if (receiver.front) {
+            let weight = light.power.w * cos_n;
+            facing += weight;
+            blocked += weight * (1.0 - visible);
+        }
     }
     irradiance[i] += vec4f(sum, 0.0);
     coverage[i] += vec2f(blocked, facing);

@@ -5,12 +5,14 @@
 use std::path::PathBuf;
 
 use anyhow::{Result, bail};
-use clap::{Parser, ValueEnum};
+use clap::{Parser, Subcommand, ValueEnum};
 
+use crate::check::{self, CheckOptions};
 use crate::config::{BakeOptions, Config, EnvironmentOptions};
 use crate::environment::LightMode;
 use crate::export::ExportOptions;
 use crate::progress::LogMode;
+use crate::report::{ReferenceCheck, ReportOptions};
 use crate::solve::{BounceOptions, SolveOptions};
 use crate::unwrap::{Backend, UnwrapOptions};
 
@@ -19,12 +21,24 @@ use crate::unwrap::{Backend, UnwrapOptions};
 /// Each input gets `OUT/<name>.glb` (TEXCOORD_1 plus the baked lighting, shown
 /// by any glTF viewer) and `OUT/<name>.lightmap0.exr` (the HDR lightmap,
 /// L_lm = E/π per texel); the run writes `OUT/report.json`. Outputs appear
-/// only when the whole run succeeds; inputs are never modified.
+/// only when the whole run succeeds; inputs are never modified. `bake check`
+/// compares a bake's report with a golden one (see `bake check --help`).
 ///
-/// Exit codes: 0 success, 2 error (one line on stderr names the file and the problem).
+/// Exit codes: 0 success, 1 `bake check` failed, 2 error (one line on stderr
+/// names the file and the problem).
 #[derive(Parser, Debug)]
-#[command(name = "bake", version, about, long_about)]
+#[command(
+    name = "bake",
+    version,
+    about,
+    long_about,
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true
+)]
 pub struct Args {
+    #[command(subcommand)]
+    pub command: Option<Command>,
+
     /// glTF scenes to bake (.gltf or .glb)
     #[arg(required = true, value_name = "INPUT")]
     pub inputs: Vec<PathBuf>,
@@ -108,6 +122,59 @@ pub struct Args {
     /// Progress format when not quiet: bars on a terminal and text otherwise (auto), or one JSON object per line
     #[arg(long, value_name = "FORMAT", default_value = "auto")]
     pub log_format: LogFormat,
+
+    /// Also write OUT/<name>.convergence.svg: unshot power and error estimate against time (log scale)
+    #[arg(long)]
+    pub plot: bool,
+
+    /// Estimate N texels with the CPU reference path tracer before solving, and record the bake's
+    /// error at them (relative RMSE) at every point of the convergence trace (slow: N × the samples)
+    #[arg(long, value_name = "N")]
+    pub reference: Option<usize>,
+
+    /// Paths per texel for --reference (its noise falls as 1/√samples)
+    #[arg(long, value_name = "N", default_value_t = 256)]
+    pub reference_samples: u32,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Check a bake's texel energy against a golden report, and the invariants every bake keeps
+    ///
+    /// TARGET is a bake's report.json, or a baked .glb/.gltf whose run's report.json lies beside
+    /// it (then only that scene is checked). Lightmap EXRs beside the report are re-read and
+    /// their texels checked too. Without --against, only the invariants are checked: no NaN,
+    /// infinite or negative texel, every covered texel written, reflected power within received
+    /// power times albedo, emitted power accounted for.
+    ///
+    /// Exit codes: 0 pass, 1 check failed (a table on stdout says what moved or which invariant
+    /// broke), 2 error (a file is missing or unreadable; one line on stderr).
+    Check(CheckArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct CheckArgs {
+    /// The bake to check: its report.json, or a baked .glb/.gltf with report.json beside it
+    #[arg(value_name = "TARGET")]
+    pub target: PathBuf,
+
+    /// Golden report.json to compare texel energy per mesh with
+    #[arg(long, value_name = "GOLDEN")]
+    pub against: Option<PathBuf>,
+
+    /// Largest relative change allowed per figure, as a percentage ("2%") or a fraction ("0.02")
+    #[arg(long, value_name = "X", default_value = "2%", value_parser = check::parse_tolerance)]
+    pub tolerance: f64,
+
+    /// Print nothing when the check passes
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+impl CheckArgs {
+    pub fn options(&self) -> CheckOptions {
+        CheckOptions { target: self.target.clone(), against: self.against.clone(), tolerance: self.tolerance }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -153,6 +220,12 @@ impl Args {
         if !(1..=1 << 20).contains(&self.patches) {
             bail!("--patches must be between 1 and 1048576, not {}", self.patches);
         }
+        if self.reference.is_some_and(|n| !(1..=65536).contains(&n)) {
+            bail!("--reference must be between 1 and 65536 texels");
+        }
+        if !(1..=1 << 20).contains(&self.reference_samples) {
+            bail!("--reference-samples must be between 1 and 1048576, not {}", self.reference_samples);
+        }
         if !self.exposure.is_finite() {
             bail!("--exposure must be finite");
         }
@@ -192,8 +265,16 @@ impl Args {
                     ..SolveOptions::default()
                 },
                 export: ExportOptions { exposure: self.exposure, ..ExportOptions::default() },
+                reference: self.reference.map(|texels| ReferenceCheck {
+                    texels,
+                    samples: self.reference_samples,
+                    environment: None,
+                    env_rotation_degrees: self.env_rotation,
+                    env_intensity: self.env_intensity,
+                }),
             },
             log,
+            report: ReportOptions { arguments: Vec::new(), plot: self.plot },
         })
     }
 }
@@ -266,6 +347,7 @@ mod tests {
             "llvmpipe",
             "--log-format",
             "json",
+            "--plot",
         ])
         .unwrap();
         assert_eq!(config.inputs.len(), 2);
@@ -287,7 +369,37 @@ mod tests {
         assert_eq!(config.bake.solve.bounce.patches, 300);
         assert_eq!(config.adapter.as_deref(), Some("llvmpipe"));
         assert_eq!(config.log, LogMode::Json);
+        assert!(config.report.plot);
         assert_eq!(parse(&["a.glb", "-q"]).unwrap().log, LogMode::Quiet);
+    }
+
+    fn parse_check(args: &[&str]) -> Result<CheckArgs> {
+        let mut full = vec!["bake", "check"];
+        full.extend_from_slice(args);
+        match Args::try_parse_from(full).map_err(|e| anyhow::anyhow!("{e}"))?.command {
+            Some(Command::Check(check)) => Ok(check),
+            None => anyhow::bail!("not parsed as `bake check`"),
+        }
+    }
+
+    #[test]
+    fn check_subcommand_parses_and_bake_still_takes_inputs() {
+        let check = parse_check(&["out/report.json", "--against", "golden.json", "--tolerance", "5%"]).unwrap();
+        assert_eq!(check.target, PathBuf::from("out/report.json"));
+        assert_eq!(check.against, Some(PathBuf::from("golden.json")));
+        assert!((check.tolerance - 0.05).abs() < 1e-12);
+        assert!((parse_check(&["a.glb", "--tolerance", "0.02"]).unwrap().tolerance - 0.02).abs() < 1e-12);
+        assert_eq!(parse_check(&["a.glb"]).unwrap().tolerance, check::DEFAULT_TOLERANCE);
+        assert_eq!(parse_check(&["a.glb"]).unwrap().against, None);
+        for bad in
+            [&["a.glb", "--tolerance", "2"][..], &["a.glb", "--tolerance", "-1%"], &["a.glb", "--tolerance", "x"], &[]]
+        {
+            assert!(parse_check(bad).is_err(), "{bad:?} was accepted");
+        }
+        // A bake whose second input happens to be called "check" is still a bake.
+        let args = Args::try_parse_from(["bake", "a.glb", "check", "--env", "sky.exr"]).unwrap();
+        assert!(args.command.is_none());
+        assert_eq!(args.inputs, vec![PathBuf::from("a.glb"), PathBuf::from("check")]);
     }
 
     #[test]

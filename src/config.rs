@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use crate::environment::LightMode;
 use crate::export::ExportOptions;
 use crate::progress::LogMode;
+use crate::report::ReportOptions;
 use crate::solve::SolveOptions;
 use crate::unwrap::UnwrapOptions;
 
@@ -39,6 +40,8 @@ pub struct BakeOptions {
     pub unwrap: UnwrapOptions,
     pub solve: SolveOptions,
     pub export: ExportOptions,
+    /// `--reference`: estimate some texels with the CPU reference and trace the error at them.
+    pub reference: Option<crate::report::ReferenceCheck>,
 }
 
 /// Everything one `bake` run needs.
@@ -55,4 +58,6 @@ pub struct Config {
     pub adapter: Option<String>,
     pub bake: BakeOptions,
     pub log: LogMode,
+    /// What goes into report.json besides the bake, and whether to plot.
+    pub report: ReportOptions,
 }

@@ -9,6 +9,7 @@
 //! and library users.
 
 pub mod asset;
+pub mod check;
 pub mod cli;
 pub mod config;
 pub mod environment;
@@ -17,6 +18,7 @@ pub mod fixtures;
 pub mod gpu;
 pub mod import;
 pub mod output;
+pub mod plot;
 pub mod progress;
 pub mod reference;
 pub mod report;
@@ -34,7 +36,9 @@ use config::{BakeOptions, Config, EnvironmentOptions};
 use environment::{EnvironmentMap, LightSet};
 use gpu::Gpu;
 use progress::Progress;
-use report::{AtlasReport, EnvironmentReport, Report, SceneReport, StageTime, TexelReport};
+use report::{
+    AtlasReport, EnvironmentReport, InputFile, MemoryProbe, OptionsReport, Report, SceneReport, StageTime, TexelReport,
+};
 use scene::Scene;
 use solve::Solution;
 use texelize::TexelSet;
@@ -48,10 +52,13 @@ pub struct Baked {
     pub solution: Solution,
     pub stages: Vec<StageTime>,
     pub notices: Vec<String>,
+    /// `--reference`: the bake's error against the CPU reference.
+    pub reference: Option<report::ReferenceReport>,
 }
 
-/// Times `f` as stage `name` of `scene`, reporting to `progress`.
+/// Times `f` as stage `name` of `scene` and measures its memory, reporting to `progress`.
 fn stage<T>(
+    gpu: &Gpu,
     progress: &mut dyn Progress,
     stages: &mut Vec<StageTime>,
     scene: &str,
@@ -59,10 +66,12 @@ fn stage<T>(
     f: impl FnOnce(&mut dyn Progress) -> Result<(T, String)>,
 ) -> Result<T> {
     let start = Instant::now();
+    let probe = MemoryProbe::start(Some(gpu));
     progress.stage(scene, name);
     let (value, summary) = f(progress)?;
     progress.finish(&summary);
-    stages.push(StageTime { stage: name.to_string(), seconds: start.elapsed().as_secs_f64() });
+    let memory = probe.and_then(|p| p.finish(Some(gpu)));
+    stages.push(StageTime { stage: name.to_string(), seconds: start.elapsed().as_secs_f64(), memory });
     Ok(value)
 }
 
@@ -77,7 +86,7 @@ pub fn bake_scene(
     let name = scene.name.clone();
     let mut stages = Vec::new();
     let mut notices = scene.notices.clone();
-    let atlas = stage(progress, &mut stages, &name, "unwrap", |_| {
+    let atlas = stage(gpu, progress, &mut stages, &name, "unwrap", |_| {
         let meshes: Vec<unwrap::MeshInput> = scene
             .primitives
             .iter()
@@ -98,13 +107,30 @@ pub fn bake_scene(
         progress.notice(notice);
     }
     notices.extend(atlas.notices.iter().cloned());
-    let texels = stage(progress, &mut stages, &name, "texelize", |_| {
+    let texels = stage(gpu, progress, &mut stages, &name, "texelize", |_| {
         let texels = texelize::run(gpu, &scene, &atlas)?;
         let summary = format!("{} texels covering {:.4} m²", texels.texels.len(), texels.total_area());
         Ok((texels, summary))
     })?;
-    let solution = stage(progress, &mut stages, &name, "solve", |progress| {
-        let solution = solve::run(gpu, &scene, &texels, lights, atlas.texels_per_unit, &options.solve, &mut |d, t| {
+    let mut solve_options = options.solve.clone();
+    let mut reference = None;
+    if let Some(check) = &options.reference {
+        let start = Instant::now();
+        let (probes, noise) = stage(gpu, progress, &mut stages, &name, "reference", |_| {
+            let (probes, noise) = report::reference_probes(&scene, &texels, check);
+            let summary = format!(
+                "{} texels × {} paths on the CPU, noise {:.2}%",
+                probes.texels.len(),
+                check.samples,
+                noise * 100.0
+            );
+            Ok(((probes, noise), summary))
+        })?;
+        reference = Some((std::sync::Arc::new(probes), noise, start.elapsed().as_secs_f64()));
+        solve_options.bounce.probes = reference.as_ref().map(|r| r.0.clone());
+    }
+    let solution = stage(gpu, progress, &mut stages, &name, "solve", |progress| {
+        let solution = solve::run(gpu, &scene, &texels, lights, atlas.texels_per_unit, &solve_options, &mut |d, t| {
             progress.update(d, t)
         })?;
         let mut parts = Vec::new();
@@ -128,7 +154,14 @@ pub fn bake_scene(
         let summary = if parts.is_empty() { "nothing to solve".to_string() } else { parts.join("; ") };
         Ok((solution, summary))
     })?;
-    Ok(Baked { scene, atlas, texels, solution, stages, notices })
+    let reference = reference.map(|(probes, noise, seconds)| report::ReferenceReport {
+        texels: probes.texels.len(),
+        samples: options.reference.as_ref().map_or(0, |r| r.samples),
+        seconds,
+        noise,
+        error: probes.relative_rmse(probes.texels.iter().map(|&i| solution.lightmap[i as usize].map(|v| v as f64))),
+    });
+    Ok(Baked { scene, atlas, texels, solution, stages, notices, reference })
 }
 
 /// Loads the environment and extracts its lights.
@@ -151,6 +184,7 @@ pub fn load_environment(path: &Path, options: &EnvironmentOptions) -> Result<(Li
         rotation_degrees: options.rotation_degrees,
         intensity: options.intensity,
         seconds: start.elapsed().as_secs_f64(),
+        memory: None,
         notices: loaded.notices,
     };
     Ok((lights, report))
@@ -182,11 +216,20 @@ pub fn preflight(config: &Config) -> Result<()> {
 pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Report> {
     let start = Instant::now();
     let staging = output::Staging::new(&config.output, &config.inputs)?;
+    let mut inputs = Vec::new();
+    for input in &config.inputs {
+        inputs.push(InputFile::hash("scene", input)?);
+    }
+    if let Some(env) = &config.environment {
+        inputs.push(InputFile::hash("environment", env)?);
+    }
 
     let environment = match &config.environment {
         Some(path) => {
             progress.stage("", "environment");
-            let (lights, report) = load_environment(path, &config.environment_options)?;
+            let probe = MemoryProbe::start(None);
+            let (lights, mut report) = load_environment(path, &config.environment_options)?;
+            report.memory = probe.and_then(|p| p.finish(None));
             for notice in &report.notices {
                 progress.notice(notice);
             }
@@ -196,10 +239,17 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
         None => None,
     };
 
+    // `--reference` traces against the full-resolution map, not the light set.
+    let mut bake_options = config.bake.clone();
+    if let (Some(check), Some(path)) = (&mut bake_options.reference, &config.environment) {
+        let load = environment::EnvLoadOptions { clamp_nonfinite: config.environment_options.clamp_nonfinite };
+        check.environment = Some(std::sync::Arc::new(EnvironmentMap::load(path, &load)?.map));
+    }
+
     let mut scenes = Vec::new();
     for input in &config.inputs {
         let mut stages = Vec::new();
-        let scene = stage(progress, &mut stages, &input_stem(input), "import", |_| {
+        let scene = stage(gpu, progress, &mut stages, &input_stem(input), "import", |_| {
             let scene = import::load(input)?;
             let summary = format!("{} primitives, {} triangles", scene.primitives.len(), scene.triangle_count());
             Ok((scene, summary))
@@ -211,10 +261,10 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
             bail!("input '{}': nothing lights the scene: give --env or use emissive materials", input.display());
         }
         let lights = environment.as_ref().map(|(lights, _)| lights);
-        let baked = bake_scene(gpu, scene, lights, &config.bake, progress)
+        let baked = bake_scene(gpu, scene, lights, &bake_options, progress)
             .with_context(|| format!("input '{}'", input.display()))?;
         stages.extend(baked.stages.iter().cloned());
-        let exported = stage(progress, &mut stages, &baked.scene.name, "export", |_| {
+        let exported = stage(gpu, progress, &mut stages, &baked.scene.name, "export", |_| {
             let stats = export::run(
                 &baked.scene,
                 &baked.atlas,
@@ -227,12 +277,21 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
             let summary = format!("{} files", stats.files.len());
             Ok((stats, summary))
         })?;
-        scenes.push(scene_report(input, &baked, stages, exported, &config.bake, &staging));
+        let mut scene = scene_report(input, &baked, stages, exported, &config.bake, &staging);
+        if config.report.plot {
+            let path = staging.dir().join(format!("{}.convergence.svg", scene.name));
+            let svg = plot::convergence_svg(&scene).with_context(|| format!("input '{}': plot", input.display()))?;
+            std::fs::write(&path, svg).with_context(|| format!("writing {}", path.display()))?;
+            scene.outputs.push(staging.final_path(&path));
+        }
+        scenes.push(scene);
     }
 
     let report = Report {
         schema_version: report::SCHEMA_VERSION,
         bake_version: env!("CARGO_PKG_VERSION").to_string(),
+        inputs,
+        options: OptionsReport::from_config(config),
         adapter: gpu.adapter.clone(),
         environment: environment.map(|(_, report)| report),
         scenes,
@@ -273,6 +332,7 @@ fn scene_report(
     let mut notices = baked.notices.clone();
     notices.extend(exported.notices.iter().cloned());
     SceneReport {
+        name: scene.name.clone(),
         input: input.to_path_buf(),
         outputs: exported.files.iter().map(|f| staging.final_path(f)).collect(),
         stages,
@@ -281,12 +341,14 @@ fn scene_report(
         primitives: scene.primitives.len(),
         triangles: scene.triangle_count(),
         atlas: AtlasReport {
+            index: 0,
             width: baked.atlas.width,
             height: baked.atlas.height,
             texels_per_unit: baked.atlas.texels_per_unit,
             charts: baked.atlas.chart_count,
             utilization: baked.atlas.utilization,
             unwrapper: options.unwrap.backend.to_string(),
+            energy: report::atlas_energy(&baked.texels, &baked.solution),
         },
         texels: TexelReport {
             covered: baked.texels.texels.len(),
@@ -296,5 +358,6 @@ fn scene_report(
         direct: baked.solution.direct.clone(),
         bounce: baked.solution.bounce.clone(),
         energy: report::primitive_energy(&baked.texels, &baked.solution, &keys, &names),
+        reference: baked.reference.clone(),
     }
 }

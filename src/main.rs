@@ -1,44 +1,54 @@
 //! The `bake` command: parse, run, print the error chain once, exit with a
-//! code that means something (0 ok, 2 error).
+//! code that means something (0 ok, 1 `bake check` failed, 2 error).
 
 use std::process::ExitCode;
 
 use clap::Parser;
 
-use bake::cli::Args;
+use bake::check::EXIT_ERROR;
+use bake::cli::{Args, CheckArgs, Command};
 use bake::gpu::Gpu;
 use bake::progress::{LogMode, Reporter};
 
 fn main() -> ExitCode {
     quiet_mesa_runtime_dir_warning();
-    let args = Args::parse();
-    match run(args) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(error) => {
+    let mut args = Args::parse();
+    let json_errors = args.log_format == bake::cli::LogFormat::Json && !args.quiet;
+    let result = match args.command.take() {
+        Some(Command::Check(check)) => run_check(&check),
+        None => run(args).map(|()| ExitCode::SUCCESS),
+    };
+    result.unwrap_or_else(|error| {
+        if json_errors {
+            eprintln!("{}", serde_json::json!({ "event": "error", "message": format!("{error:#}") }));
+        } else {
             eprintln!("bake: error: {error:#}");
-            ExitCode::from(2)
         }
-    }
+        ExitCode::from(EXIT_ERROR)
+    })
 }
 
 fn run(args: Args) -> anyhow::Result<()> {
-    let config = args.into_config()?;
+    let mut config = args.into_config()?;
+    config.report.arguments = std::env::args().collect();
     bake::preflight(&config)?;
     let mut progress = Reporter::new(config.log);
     let gpu = Gpu::new(config.adapter.as_deref())?;
-    if config.log != LogMode::Quiet {
-        eprintln!("adapter: {}", gpu.adapter);
-    }
+    progress.info("adapter", &format!("adapter: {}", gpu.adapter));
     let report = bake::run(&config, &gpu, &mut progress)?;
     if config.log != LogMode::Quiet {
-        eprintln!(
-            "baked {} scene(s) in {:.2} s into {}",
-            report.scenes.len(),
-            report.total_seconds,
-            config.output.display()
-        );
+        progress.summary(&report, &config.output);
     }
     Ok(())
+}
+
+/// `bake check`: the table on stdout, exit code 0 (pass) or 1 (failed).
+fn run_check(args: &CheckArgs) -> anyhow::Result<ExitCode> {
+    let findings = bake::check::run(&args.options())?;
+    if !(args.quiet && findings.passed()) {
+        print!("{}", findings.render());
+    }
+    Ok(ExitCode::from(findings.exit_code()))
 }
 
 /// Mesa's Vulkan loader complains on stderr when XDG_RUNTIME_DIR is unset

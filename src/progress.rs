@@ -1,11 +1,21 @@
 //! What the user sees while a bake runs: numbered stages with a progress bar
 //! and ETA on a terminal, plain log lines (text or JSON) when stderr is not
-//! a terminal, nothing but errors with `--quiet`.
+//! a terminal, nothing but errors with `--quiet`; at the end a one-screen
+//! summary (or one JSON object with `"event": "summary"`).
+//!
+//! JSON mode writes one object per line on stderr, each with an `event`:
+//! `adapter`, `stage` (a stage starts), `progress`, `notice`, `finish` (a
+//! stage ended; `message` says what it made), `summary` (the run's figures,
+//! see `Summary`) and `error` (the run failed; `message` is the cause).
 
 use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use serde::Serialize;
+
+use crate::report::{Report, luminance};
 
 /// How progress is shown.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -75,6 +85,33 @@ impl Reporter {
         if self.scene.is_empty() { self.name.clone() } else { format!("{} {}", self.scene, self.name) }
     }
 
+    /// A one-line message outside any stage (e.g. which adapter runs), as event `event` in JSON.
+    pub fn info(&mut self, event: &str, message: &str) {
+        match self.mode {
+            LogMode::Quiet => {}
+            LogMode::Json => {
+                let mut err = std::io::stderr().lock();
+                let _ = writeln!(err, "{}", serde_json::json!({ "event": event, "message": message }));
+            }
+            _ => eprintln!("{message}"),
+        }
+    }
+
+    /// The final summary: a screen of text, or one JSON object in JSON mode.
+    pub fn summary(&mut self, report: &Report, output: &Path) {
+        let summary = Summary::of(report, output);
+        match self.mode {
+            LogMode::Quiet => {}
+            LogMode::Json => {
+                let mut value = serde_json::to_value(&summary).unwrap_or_default();
+                value["event"] = "summary".into();
+                let mut err = std::io::stderr().lock();
+                let _ = writeln!(err, "{value}");
+            }
+            _ => eprint!("{}", summary.text()),
+        }
+    }
+
     fn line(&self, event: &str, message: &str) {
         let mut err = std::io::stderr().lock();
         let _ = match self.mode {
@@ -139,5 +176,132 @@ impl Progress for Reporter {
             None if self.mode == LogMode::Quiet => {}
             None => self.line("notice", &format!("note: {message}")),
         }
+    }
+}
+
+/// The figures a user wants after a run, on one screen.
+#[derive(Clone, Debug, Serialize)]
+pub struct Summary {
+    pub seconds: f64,
+    pub adapter: String,
+    /// Lights from the environment (0 without one).
+    pub lights: usize,
+    pub environment: Option<PathBuf>,
+    pub scenes: Vec<SceneSummary>,
+    pub report: PathBuf,
+    /// Largest resident set of any stage, bytes (Linux).
+    pub peak_rss_bytes: Option<u64>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct SceneSummary {
+    pub name: String,
+    pub seconds: f64,
+    pub texels: usize,
+    pub atlas: [u32; 2],
+    /// Bounce shots and why the pass stopped ("converged", "max shots",
+    /// "max time"), or why it was left out.
+    pub bounce_shots: u64,
+    pub bounce: String,
+    /// Unshot power over the power put in, when the bounce pass stopped.
+    pub unshot_fraction: f64,
+    /// Luminance of the area-weighted mean L_lm.
+    pub mean_luminance: f64,
+    /// `--reference`: relative RMSE against the CPU reference, its noise, and the texel count.
+    pub reference: Option<crate::report::ReferenceReport>,
+    pub outputs: Vec<PathBuf>,
+}
+
+impl Summary {
+    pub fn of(report: &Report, output: &Path) -> Summary {
+        let stage_peaks = report.scenes.iter().flat_map(|s| s.stages.iter()).filter_map(|s| s.memory.as_ref());
+        let env_peak = report.environment.as_ref().and_then(|e| e.memory.as_ref());
+        let peak_rss_bytes = stage_peaks.chain(env_peak).map(|m| m.peak_rss_bytes).max();
+        Summary {
+            seconds: report.total_seconds,
+            adapter: report.adapter.to_string(),
+            lights: report.environment.as_ref().map_or(0, |e| e.lights),
+            environment: report.environment.as_ref().map(|e| e.path.clone()),
+            scenes: report
+                .scenes
+                .iter()
+                .map(|s| SceneSummary {
+                    name: s.name.clone(),
+                    seconds: s.stages.iter().map(|t| t.seconds).sum(),
+                    texels: s.texels.covered,
+                    atlas: [s.atlas.width, s.atlas.height],
+                    bounce_shots: s.bounce.as_ref().map_or(0, |b| b.shots),
+                    bounce: match (&s.bounce, s.skipped.iter().find(|k| k.pass == "bounce")) {
+                        (Some(b), _) => b.stopped_by.clone(),
+                        (None, Some(k)) => format!("left out: {}", k.reason),
+                        (None, None) => "left out".to_string(),
+                    },
+                    unshot_fraction: s.bounce.as_ref().map_or(0.0, |b| b.unshot_fraction),
+                    mean_luminance: luminance(s.atlas.energy.mean_lightmap),
+                    reference: s.reference.clone(),
+                    outputs: s.outputs.clone(),
+                })
+                .collect(),
+            report: output.join("report.json"),
+            peak_rss_bytes,
+        }
+    }
+
+    /// The summary as a screen of text.
+    pub fn text(&self) -> String {
+        let mut out = String::from("── summary ──\n");
+        let mut row = |key: &str, value: String| out.push_str(&format!("{key:<10} {value}\n"));
+        row("time", format!("{:.2} s", self.seconds));
+        row("adapter", self.adapter.clone());
+        row(
+            "lights",
+            match &self.environment {
+                Some(env) => format!("{} from {}", self.lights, env.display()),
+                None => "none: lit by emissive materials only".to_string(),
+            },
+        );
+        if let Some(peak) = self.peak_rss_bytes {
+            row("memory", format!("{:.0} MiB peak resident", peak as f64 / (1u64 << 20) as f64));
+        }
+        for s in &self.scenes {
+            out.push_str(&format!("{}  ({:.2} s)\n", s.name, s.seconds));
+            let mut row = |key: &str, value: String| out.push_str(&format!("  {key:<8} {value}\n"));
+            row(
+                "texels",
+                format!(
+                    "{} covered in a {}×{} atlas, mean L_lm {:.4}",
+                    s.texels, s.atlas[0], s.atlas[1], s.mean_luminance
+                ),
+            );
+            row(
+                "bounce",
+                if s.bounce_shots > 0 || !s.bounce.starts_with("left out") {
+                    format!(
+                        "{} shots, {}, {:.2}% of the power unshot",
+                        s.bounce_shots,
+                        s.bounce,
+                        s.unshot_fraction * 100.0
+                    )
+                } else {
+                    s.bounce.clone()
+                },
+            );
+            if let Some(r) = &s.reference {
+                row(
+                    "error",
+                    format!(
+                        "{:.2}% RMSE against the CPU reference at {} texels (its noise {:.2}%)",
+                        r.error * 100.0,
+                        r.texels,
+                        r.noise * 100.0
+                    ),
+                );
+            }
+            for (i, path) in s.outputs.iter().enumerate() {
+                row(if i == 0 { "wrote" } else { "" }, path.display().to_string());
+            }
+        }
+        out.push_str(&format!("{:<10} {}\n", "report", self.report.display()));
+        out
     }
 }

@@ -1,26 +1,151 @@
-//! `report.json`: what ran and what was left out, timings, the adapter,
-//! counts, and per-primitive texel energy, so CI can check a bake's energy
-//! and a user can see how good and how fast it was.
+//! `report.json`: what ran and what was left out, timings and memory per
+//! stage, the inputs and their hashes, the options, the adapter, counts, the
+//! convergence trace and texel energy per primitive and per atlas, so that
+//! CI can check a bake's energy (`bake check`) and a user can see how good
+//! and how fast it was.
+//!
+//! The layout is documented field by field, with units, in
+//! `schema/report.schema.json` (JSON Schema draft 2020-12); a test validates
+//! a real report against it. `SCHEMA_VERSION` is bumped on any change to the
+//! layout, and the schema's `schema_version` constant with it.
 
-use std::path::PathBuf;
+use std::io::Read;
+use std::path::{Path, PathBuf};
 
+use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
 
-use crate::gpu::AdapterDescription;
+use crate::config::Config;
+use crate::environment::EnvironmentMap;
+use crate::gpu::{AdapterDescription, Gpu};
+use crate::reference::{Reference, ReferenceOptions, ReferencePoint};
+use crate::scene::Scene;
+use crate::solve::bounce::Probes;
 use crate::solve::{BounceStats, Skipped, Solution, direct::DirectStats};
 use crate::texelize::TexelSet;
 
 /// Version of the report's layout; bumped on any incompatible change.
-pub const SCHEMA_VERSION: u32 = 1;
+pub const SCHEMA_VERSION: u32 = 2;
+
+/// The schema `report.json` follows (also in the repository as `schema/report.schema.json`).
+pub const SCHEMA: &str = include_str!("../schema/report.schema.json");
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Report {
     pub schema_version: u32,
     pub bake_version: String,
+    /// Every file the run read, hashed.
+    pub inputs: Vec<InputFile>,
+    pub options: OptionsReport,
     pub adapter: AdapterDescription,
     pub environment: Option<EnvironmentReport>,
     pub scenes: Vec<SceneReport>,
     pub total_seconds: f64,
+}
+
+/// One input file and its content hash.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct InputFile {
+    /// "scene" or "environment".
+    pub role: String,
+    /// The path as given on the command line.
+    pub path: PathBuf,
+    pub bytes: u64,
+    /// SHA-256 of the file's bytes, lower-case hex.
+    pub sha256: String,
+}
+
+impl InputFile {
+    /// Reads and hashes `path`.
+    pub fn hash(role: &str, path: &Path) -> Result<InputFile> {
+        let mut file =
+            std::fs::File::open(path).with_context(|| format!("{role} '{}': cannot read", path.display()))?;
+        let mut hasher = Sha256::new();
+        let mut buffer = vec![0u8; 1 << 16];
+        let mut bytes = 0u64;
+        loop {
+            let n = file.read(&mut buffer).with_context(|| format!("{role} '{}': cannot read", path.display()))?;
+            if n == 0 {
+                break;
+            }
+            hasher.update(&buffer[..n]);
+            bytes += n as u64;
+        }
+        let sha256 = hasher.finalize().iter().map(|b| format!("{b:02x}")).collect();
+        Ok(InputFile { role: role.to_string(), path: path.to_path_buf(), bytes, sha256 })
+    }
+}
+
+/// Options that are about the report itself, not the bake.
+#[derive(Clone, Debug, Default)]
+pub struct ReportOptions {
+    /// The command line as given (recorded in the report).
+    pub arguments: Vec<String>,
+    /// Write `OUT/<name>.convergence.svg` per scene (`--plot`).
+    pub plot: bool,
+}
+
+/// The options the run used: the command line as given, and every option
+/// after defaults were filled in.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct OptionsReport {
+    pub arguments: Vec<String>,
+    pub texels_per_unit: Option<f32>,
+    pub max_atlas_size: u32,
+    pub padding: u32,
+    pub unwrapper: String,
+    pub lights: String,
+    pub env_rotation_degrees: f32,
+    pub env_intensity: f32,
+    pub clamp_nonfinite: bool,
+    pub shadow_map_size: Option<u32>,
+    pub light_batch_size: u32,
+    pub tolerance: f64,
+    pub max_shots: Option<u64>,
+    pub max_seconds: Option<f64>,
+    pub patches: u32,
+    pub shooters_per_batch: u32,
+    pub hemicube_size: u32,
+    pub exposure: f32,
+    pub dilation: u32,
+    pub adapter: Option<String>,
+    pub plot: bool,
+    /// `--reference`: texels estimated by the CPU reference (0: none).
+    pub reference_texels: usize,
+    pub reference_samples: u32,
+}
+
+impl OptionsReport {
+    pub fn from_config(config: &Config) -> OptionsReport {
+        let env = &config.environment_options;
+        let bake = &config.bake;
+        OptionsReport {
+            arguments: config.report.arguments.clone(),
+            texels_per_unit: bake.unwrap.texels_per_unit,
+            max_atlas_size: bake.unwrap.max_atlas_size,
+            padding: bake.unwrap.padding,
+            unwrapper: bake.unwrap.backend.to_string(),
+            lights: env.lights.to_string(),
+            env_rotation_degrees: env.rotation_degrees,
+            env_intensity: env.intensity,
+            clamp_nonfinite: env.clamp_nonfinite,
+            shadow_map_size: bake.solve.shadow_map_size,
+            light_batch_size: bake.solve.batch_size,
+            tolerance: bake.solve.bounce.tolerance,
+            max_shots: bake.solve.bounce.max_shots,
+            max_seconds: bake.solve.bounce.max_seconds,
+            patches: bake.solve.bounce.patches,
+            shooters_per_batch: bake.solve.bounce.shooters_per_batch,
+            hemicube_size: bake.solve.bounce.hemicube_size,
+            exposure: bake.export.exposure,
+            dilation: bake.export.dilation,
+            adapter: config.adapter.clone(),
+            plot: config.report.plot,
+            reference_texels: bake.reference.as_ref().map_or(0, |r| r.texels),
+            reference_samples: bake.reference.as_ref().map_or(0, |r| r.samples),
+        }
+    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -40,14 +165,18 @@ pub struct EnvironmentReport {
     pub rotation_degrees: f32,
     pub intensity: f32,
     pub seconds: f64,
+    /// Memory while loading the map and extracting lights.
+    pub memory: Option<StageMemory>,
     pub notices: Vec<String>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct SceneReport {
+    /// The output name: the input's file stem (`OUT/<name>.glb`); `bake check` matches scenes by it.
+    pub name: String,
     pub input: PathBuf,
     pub outputs: Vec<PathBuf>,
-    /// Every stage in pipeline order, with its time.
+    /// Every stage in pipeline order, with its time and memory.
     pub stages: Vec<StageTime>,
     /// Passes left out and why.
     pub skipped: Vec<Skipped>,
@@ -62,22 +191,159 @@ pub struct SceneReport {
     pub bounce: Option<BounceStats>,
     /// Texel energy per baked primitive, in scene order.
     pub energy: Vec<PrimitiveEnergy>,
+    /// `--reference`: the bake's error against the CPU reference at some texels.
+    pub reference: Option<ReferenceReport>,
+}
+
+/// `--reference N`: N texels estimated by the CPU reference path tracer
+/// (`src/reference/`) before the solve; the trace records the bake's error
+/// at them as it converges.
+#[derive(Clone, Debug)]
+pub struct ReferenceCheck {
+    /// Texels to estimate (spread evenly over the covered texels with area).
+    pub texels: usize,
+    /// Paths per texel.
+    pub samples: u32,
+    /// The full-resolution environment, with its rotation and intensity. `run`
+    /// sets it; a library caller of `bake_scene` that bakes under an
+    /// environment must set it too (`None` traces against a black sky).
+    pub environment: Option<std::sync::Arc<EnvironmentMap>>,
+    pub env_rotation_degrees: f32,
+    pub env_intensity: f32,
+}
+
+/// What `--reference` measured.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct ReferenceReport {
+    /// Texels estimated.
+    pub texels: usize,
+    /// Paths per texel.
+    pub samples: u32,
+    /// Time the reference took, seconds.
+    pub seconds: f64,
+    /// The reference's own noise: root mean squared standard error over the
+    /// mean reference value (errors below it cannot be resolved).
+    pub noise: f64,
+    /// Relative RMSE of the final lightmap at those texels.
+    pub error: f64,
+}
+
+/// Estimates `check.texels` texels of `texels` with the CPU reference:
+/// the probes the bounce pass reads back, and the reference's relative noise.
+pub fn reference_probes(scene: &Scene, texels: &TexelSet, check: &ReferenceCheck) -> (Probes, f64) {
+    let candidates: Vec<u32> =
+        (0..texels.texels.len() as u32).filter(|&i| texels.texels[i as usize].area > 0.0).collect();
+    let n = check.texels.min(candidates.len());
+    let chosen: Vec<u32> = (0..n).map(|k| candidates[(2 * k + 1) * candidates.len() / (2 * n)]).collect();
+    let points: Vec<ReferencePoint> = chosen
+        .iter()
+        .map(|&i| {
+            let t = &texels.texels[i as usize];
+            ReferencePoint { position: t.position, normal: t.normal }
+        })
+        .collect();
+    let options = ReferenceOptions {
+        samples: check.samples,
+        env_rotation_degrees: check.env_rotation_degrees,
+        env_intensity: check.env_intensity,
+        ..ReferenceOptions::default()
+    };
+    let estimates = Reference::new(scene, check.environment.as_deref(), &options).estimate(&points);
+    let (mut variance, mut sum) = (0.0f64, 0.0f64);
+    for e in &estimates {
+        for c in 0..3 {
+            if e.std_error[c].is_finite() {
+                variance += e.std_error[c].powi(2);
+            }
+            sum += e.lightmap[c];
+        }
+    }
+    let count = (3 * estimates.len()).max(1) as f64;
+    let noise = if sum > 0.0 { (variance / count).sqrt() / (sum / count) } else { 0.0 };
+    (Probes { texels: chosen, reference: estimates.iter().map(|e| e.lightmap).collect() }, noise)
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct StageTime {
     pub stage: String,
     pub seconds: f64,
+    /// `None` where memory cannot be measured (not Linux).
+    pub memory: Option<StageMemory>,
+}
+
+/// Memory of one stage. CPU: the process's resident set (Linux
+/// `/proc/self/status` VmRSS, and VmHWM for the peak after resetting it at
+/// the stage's start through `/proc/self/clear_refs`). GPU: bytes wgpu's
+/// allocator holds for live buffers and textures, sampled whenever the stage
+/// waits for the GPU.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct StageMemory {
+    pub rss_before_bytes: u64,
+    pub rss_after_bytes: u64,
+    pub peak_rss_bytes: u64,
+    /// "stage" when the high-water mark was reset at the stage's start, so
+    /// `peak_rss_bytes` is this stage's peak; "process" when it could not be
+    /// reset (the peak since the process started).
+    pub peak_rss_scope: String,
+    /// Largest GPU allocator total seen at the stage's GPU waits (a lower
+    /// bound of its peak); `None` where the backend gives no report.
+    pub gpu_peak_bytes: Option<u64>,
+    pub gpu_after_bytes: Option<u64>,
+}
+
+/// Measures one stage's memory: `start` before it, `finish` after.
+pub struct MemoryProbe {
+    rss_before: u64,
+    reset: bool,
+}
+
+impl MemoryProbe {
+    /// Records the resident set and resets the high-water marks (CPU and GPU).
+    pub fn start(gpu: Option<&Gpu>) -> Option<MemoryProbe> {
+        let (rss_before, _) = read_rss()?;
+        let reset = std::fs::write("/proc/self/clear_refs", "5").is_ok();
+        if let Some(gpu) = gpu {
+            gpu.take_memory_peak();
+        }
+        Some(MemoryProbe { rss_before, reset })
+    }
+
+    pub fn finish(self, gpu: Option<&Gpu>) -> Option<StageMemory> {
+        let (rss_after, peak) = read_rss()?;
+        Some(StageMemory {
+            rss_before_bytes: self.rss_before,
+            rss_after_bytes: rss_after,
+            peak_rss_bytes: peak.max(rss_after).max(if self.reset { 0 } else { self.rss_before }),
+            peak_rss_scope: if self.reset { "stage" } else { "process" }.to_string(),
+            gpu_peak_bytes: gpu.and_then(Gpu::take_memory_peak),
+            gpu_after_bytes: gpu.and_then(Gpu::memory_in_use),
+        })
+    }
+}
+
+/// (VmRSS, VmHWM) in bytes from `/proc/self/status`.
+fn read_rss() -> Option<(u64, u64)> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let field = |name: &str| -> Option<u64> {
+        let line = status.lines().find(|l| l.starts_with(name))?;
+        let kib: u64 = line[name.len()..].trim().trim_end_matches("kB").trim().parse().ok()?;
+        Some(kib * 1024)
+    };
+    Some((field("VmRSS:")?, field("VmHWM:")?))
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct AtlasReport {
+    /// Index N of the atlas page (`OUT/<name>.lightmap<N>.exr`).
+    pub index: u32,
     pub width: u32,
     pub height: u32,
     pub texels_per_unit: f32,
     pub charts: u32,
     pub utilization: f32,
     pub unwrapper: String,
+    /// Texel energy over every covered texel of the page.
+    pub energy: EnergyStats,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -93,84 +359,152 @@ pub struct TexelReport {
 /// Energy statistics of one baked primitive's texels.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct PrimitiveEnergy {
+    /// Node, mesh and primitive index: the key `bake check` matches by.
     pub node: usize,
     pub mesh: usize,
     pub primitive: usize,
+    /// For display: the node's (or mesh's) name and the primitive index.
     pub name: String,
+    /// Texel rectangle [x0, y0, x1, y1) (x1, y1 exclusive) holding all the
+    /// primitive's texels; [0, 0, 0, 0] when it has none.
+    pub atlas_bounds: [u32; 4],
+    #[serde(flatten)]
+    pub stats: EnergyStats,
+}
+
+/// Energy statistics of a set of covered texels (one primitive, or an atlas).
+/// Powers are Σ over texels of (something)·E·A with E = π·L_lm, in
+/// irradiance × m² (W when the environment is in W/(m²·sr)).
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct EnergyStats {
+    /// Covered texels.
     pub texels: usize,
+    /// Covered texels whose value is NaN, infinite or negative (must be 0);
+    /// they are left out of every other figure.
+    pub invalid_texels: usize,
+    /// Covered texels whose L_lm is exactly 0 in every channel.
+    pub zero_texels: usize,
     /// World area, m².
     pub area: f64,
     /// Area-weighted mean lightmap value L_lm = E/π, RGB.
     pub mean_lightmap: [f64; 3],
-    /// Smallest and largest texel luminance of L_lm.
+    /// Σ L_lm over the texels, unweighted, RGB (what the EXR holds in them).
+    pub sum_lightmap: [f64; 3],
+    /// Texel luminance of L_lm (Rec. 709): smallest, percentiles (nearest
+    /// rank over texels, unweighted) and largest.
     pub min_luminance: f64,
+    pub p1_luminance: f64,
+    pub p50_luminance: f64,
+    pub p99_luminance: f64,
     pub max_luminance: f64,
-    /// Incident power Σ E·A, RGB (W up to the environment's scale).
+    /// Incident power Σ E·A, RGB.
     pub power_received: [f64; 3],
     /// Reflected power Σ ρ·E·A, RGB.
     pub power_reflected: [f64; 3],
-    /// Texels whose value is NaN, infinite or negative (must be 0).
-    pub invalid_texels: usize,
+    /// Emitted power Σ π·Le·A, RGB.
+    pub power_emitted: [f64; 3],
+    /// Smallest and largest texel albedo, RGB ([0, 0, 0] without texels).
+    pub albedo_min: [f64; 3],
+    pub albedo_max: [f64; 3],
 }
 
 pub fn luminance(c: [f64; 3]) -> f64 {
     0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
 }
 
-/// Per-primitive energy of a solution. `names[p]` labels primitive p.
+/// Accumulates `EnergyStats` texel by texel.
+#[derive(Default)]
+struct Accumulator {
+    stats: EnergyStats,
+    luminances: Vec<f64>,
+    bounds: Option<[u32; 4]>,
+}
+
+impl Accumulator {
+    fn add(&mut self, texel: &crate::texelize::Texel, value: &[f32; 3], width: u32) {
+        let s = &mut self.stats;
+        s.texels += 1;
+        let (x, y) = (texel.x(width.max(1)), texel.y(width.max(1)));
+        self.bounds = Some(match self.bounds {
+            None => [x, y, x + 1, y + 1],
+            Some([x0, y0, x1, y1]) => [x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1)],
+        });
+        let albedo = texel.albedo.map(|a| a as f64);
+        if s.texels == 1 {
+            s.albedo_min = albedo;
+            s.albedo_max = albedo;
+        }
+        s.albedo_min = [0, 1, 2].map(|c| s.albedo_min[c].min(albedo[c]));
+        s.albedo_max = [0, 1, 2].map(|c| s.albedo_max[c].max(albedo[c]));
+        if value.iter().any(|c| !c.is_finite() || *c < 0.0) {
+            s.invalid_texels += 1;
+            return;
+        }
+        if value.iter().all(|&c| c == 0.0) {
+            s.zero_texels += 1;
+        }
+        let v = value.map(|c| c as f64);
+        let area = texel.area as f64;
+        s.area += area;
+        self.luminances.push(luminance(v));
+        for c in 0..3 {
+            s.mean_lightmap[c] += v[c] * area;
+            s.sum_lightmap[c] += v[c];
+            let e = v[c] * std::f64::consts::PI * area;
+            s.power_received[c] += e;
+            s.power_reflected[c] += e * albedo[c];
+            s.power_emitted[c] += std::f64::consts::PI * texel.emission[c] as f64 * area;
+        }
+    }
+
+    fn finish(mut self) -> (EnergyStats, [u32; 4]) {
+        let s = &mut self.stats;
+        if s.area > 0.0 {
+            s.mean_lightmap = s.mean_lightmap.map(|m| m / s.area);
+        }
+        self.luminances.sort_by(f64::total_cmp);
+        let rank = |q: f64| -> f64 {
+            let n = self.luminances.len();
+            if n == 0 { 0.0 } else { self.luminances[((q * n as f64).ceil() as usize).clamp(1, n) - 1] }
+        };
+        s.min_luminance = rank(0.0);
+        s.p1_luminance = rank(0.01);
+        s.p50_luminance = rank(0.5);
+        s.p99_luminance = rank(0.99);
+        s.max_luminance = rank(1.0);
+        (self.stats, self.bounds.unwrap_or([0; 4]))
+    }
+}
+
+/// Energy of every covered texel of `texels` (one atlas page).
+pub fn atlas_energy(texels: &TexelSet, solution: &Solution) -> EnergyStats {
+    let mut all = Accumulator::default();
+    for (texel, value) in texels.texels.iter().zip(&solution.lightmap) {
+        all.add(texel, value, texels.width);
+    }
+    all.finish().0
+}
+
+/// Per-primitive energy of a solution. `keys[p]` = (node, mesh, primitive)
+/// and `names[p]` label primitive p.
 pub fn primitive_energy(
     texels: &TexelSet,
     solution: &Solution,
     keys: &[(usize, usize, usize)],
     names: &[String],
 ) -> Vec<PrimitiveEnergy> {
-    let mut out: Vec<PrimitiveEnergy> = keys
-        .iter()
-        .zip(names)
-        .map(|(&(node, mesh, primitive), name)| PrimitiveEnergy {
-            node,
-            mesh,
-            primitive,
-            name: name.clone(),
-            texels: 0,
-            area: 0.0,
-            mean_lightmap: [0.0; 3],
-            min_luminance: f64::INFINITY,
-            max_luminance: 0.0,
-            power_received: [0.0; 3],
-            power_reflected: [0.0; 3],
-            invalid_texels: 0,
-        })
-        .collect();
+    let mut accumulators: Vec<Accumulator> = keys.iter().map(|_| Accumulator::default()).collect();
     for (texel, value) in texels.texels.iter().zip(&solution.lightmap) {
-        let Some(entry) = out.get_mut(texel.primitive as usize) else {
-            continue;
-        };
-        entry.texels += 1;
-        if value.iter().any(|c| !c.is_finite() || *c < 0.0) {
-            entry.invalid_texels += 1;
-            continue;
-        }
-        let v = value.map(|c| c as f64);
-        let area = texel.area as f64;
-        entry.area += area;
-        let l = luminance(v);
-        entry.min_luminance = entry.min_luminance.min(l);
-        entry.max_luminance = entry.max_luminance.max(l);
-        for (c, value) in v.iter().enumerate() {
-            entry.mean_lightmap[c] += value * area;
-            let e = value * std::f64::consts::PI * area;
-            entry.power_received[c] += e;
-            entry.power_reflected[c] += e * texel.albedo[c] as f64;
+        if let Some(entry) = accumulators.get_mut(texel.primitive as usize) {
+            entry.add(texel, value, texels.width);
         }
     }
-    for entry in &mut out {
-        if entry.area > 0.0 {
-            entry.mean_lightmap = entry.mean_lightmap.map(|m| m / entry.area);
-        }
-        if entry.texels == 0 || !entry.min_luminance.is_finite() {
-            entry.min_luminance = 0.0;
-        }
-    }
-    out
+    keys.iter()
+        .zip(names)
+        .zip(accumulators)
+        .map(|((&(node, mesh, primitive), name), acc)| {
+            let (stats, atlas_bounds) = acc.finish();
+            PrimitiveEnergy { node, mesh, primitive, name: name.clone(), atlas_bounds, stats }
+        })
+        .collect()
 }

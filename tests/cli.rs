@@ -83,7 +83,7 @@ fn bakes_a_fixture_into_a_lightmapped_glb() {
     assert_eq!(report.scenes.len(), 1);
     assert!(report.scenes[0].texels.covered > 0);
     assert!(!report.adapter.name.is_empty());
-    assert!(report.scenes[0].energy.iter().all(|e| e.invalid_texels == 0));
+    assert!(report.scenes[0].energy.iter().all(|e| e.stats.invalid_texels == 0));
     let names: Vec<&str> = report.scenes[0].stages.iter().map(|s| s.stage.as_str()).collect();
     assert_eq!(names, ["import", "unwrap", "texelize", "solve", "export"]);
     assert!(!out.read_dir().unwrap().any(|e| { e.unwrap().file_name().to_string_lossy().starts_with(".bake") }));
@@ -179,7 +179,7 @@ fn a_scene_lit_only_by_emitters_bakes_without_an_environment() {
     assert!(scene.skipped.iter().any(|s| s.pass == "direct"), "the direct pass is reported as left out");
     let bounce = scene.bounce.as_ref().expect("the emitters were shot");
     assert!(bounce.shots > 0 && !bounce.trace.is_empty());
-    let room = &scene.energy[0];
+    let room = &scene.energy[0].stats;
     assert!(room.mean_lightmap[0] > 0.1 && room.mean_lightmap[0] > room.mean_lightmap[2], "{:?}", room.mean_lightmap);
 }
 

@@ -9,9 +9,10 @@ mod readback;
 mod shaders;
 
 pub use materials::{GpuMaterial, Materials, NO_TEXTURE};
-pub use readback::read_buffer;
+pub use readback::{read_buffer, read_elements};
 pub use shaders::Shader;
 
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
 use anyhow::{Context, Result, bail};
@@ -46,6 +47,8 @@ pub struct Gpu {
     pub limits: wgpu::Limits,
     /// Validation, out-of-memory and device-lost messages not yet reported.
     errors: Arc<Mutex<Vec<String>>>,
+    /// Largest allocator total seen by `wait` since `take_memory_peak` (bytes).
+    memory_peak: AtomicU64,
 }
 
 /// Features every bake needs. FLOAT32_BLENDABLE: texelization sums each
@@ -124,7 +127,7 @@ impl Gpu {
                 sink.lock().unwrap().push(format!("GPU device lost ({reason:?}): {message}"));
             }
         });
-        Ok(Gpu { device, queue, adapter: description, limits, errors })
+        Ok(Gpu { device, queue, adapter: description, limits, errors, memory_peak: AtomicU64::new(0) })
     }
 
     /// Waits for submitted work and turns any GPU error raised so far into an
@@ -145,10 +148,33 @@ impl Gpu {
 
     /// Blocks until all submitted work has finished.
     pub fn wait(&self) -> Result<()> {
+        self.sample_memory();
         self.device
             .poll(wgpu::PollType::wait_indefinitely())
             .map(|_| ())
             .map_err(|e| anyhow::anyhow!("GPU wait failed: {e}"))
+    }
+
+    /// Bytes of GPU memory wgpu's allocator holds for live buffers and
+    /// textures now (`Device::generate_allocator_report`, Vulkan and D3D12);
+    /// `None` where the backend gives no report.
+    pub fn memory_in_use(&self) -> Option<u64> {
+        self.device.generate_allocator_report().map(|r| r.total_allocated_bytes)
+    }
+
+    fn sample_memory(&self) -> Option<u64> {
+        let now = self.memory_in_use()?;
+        self.memory_peak.fetch_max(now, Ordering::Relaxed);
+        Some(now)
+    }
+
+    /// The largest `memory_in_use` seen at any `wait` (every read-back and
+    /// `check` waits) since the last call, then starts over from now. A lower
+    /// bound of the true peak: memory allocated and freed between two waits
+    /// is not seen. `None` where the backend gives no report.
+    pub fn take_memory_peak(&self) -> Option<u64> {
+        let now = self.sample_memory()?;
+        Some(self.memory_peak.swap(now, Ordering::Relaxed))
     }
 
     /// Builds the named shader (with `common.wgsl` prepended).

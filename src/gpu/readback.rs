@@ -35,3 +35,25 @@ pub fn read_buffer<T: bytemuck::Pod>(gpu: &Gpu, buffer: &wgpu::Buffer, count: us
     staging.unmap();
     Ok(values)
 }
+
+/// Reads the elements at `indices` of `buffer` (which needs COPY_SRC): one
+/// small copy each, for a few probe values per batch. Element size must be a
+/// multiple of 4 bytes.
+pub fn read_elements<T: bytemuck::Pod>(gpu: &Gpu, buffer: &wgpu::Buffer, indices: &[u32]) -> Result<Vec<T>> {
+    let size = std::mem::size_of::<T>() as u64;
+    if indices.is_empty() {
+        return Ok(Vec::new());
+    }
+    let gathered = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("readback gathered"),
+        size: size * indices.len() as u64,
+        usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    for (k, &i) in indices.iter().enumerate() {
+        encoder.copy_buffer_to_buffer(buffer, i as u64 * size, &gathered, k as u64 * size, size);
+    }
+    gpu.queue.submit([encoder.finish()]);
+    read_buffer(gpu, &gathered, indices.len())
+}

@@ -44,6 +44,35 @@ pub struct BounceOptions {
     pub shooters_per_batch: u32,
     /// Hemicube face width in texels.
     pub hemicube_size: u32,
+    /// Texels whose error against a reference is recorded at every trace
+    /// point (`--reference`); `None`: not measured.
+    pub probes: Option<std::sync::Arc<Probes>>,
+}
+
+/// Texels with reference values (`--reference`): at every trace point their
+/// current lightmap values are read back (a few bytes each) and compared.
+#[derive(Clone, Debug, Default)]
+pub struct Probes {
+    /// Indices into `TexelSet::texels`.
+    pub texels: Vec<u32>,
+    /// Reference L_lm of each, linear RGB.
+    pub reference: Vec<[f64; 3]>,
+}
+
+impl Probes {
+    /// Relative RMSE of `values` against the reference: the root mean
+    /// squared difference over texels and channels, over the reference's mean.
+    pub fn relative_rmse(&self, values: impl Iterator<Item = [f64; 3]>) -> f64 {
+        let (mut squared, mut sum, mut n) = (0.0f64, 0.0f64, 0usize);
+        for (value, reference) in values.zip(&self.reference) {
+            for c in 0..3 {
+                squared += (value[c] - reference[c]).powi(2);
+                sum += reference[c];
+                n += 1;
+            }
+        }
+        if n == 0 || sum <= 0.0 { 0.0 } else { (squared / n as f64).sqrt() / (sum / n as f64) }
+    }
 }
 
 impl Default for BounceOptions {
@@ -55,6 +84,7 @@ impl Default for BounceOptions {
             patches: 1024,
             shooters_per_batch: 32,
             hemicube_size: 128,
+            probes: None,
         }
     }
 }
@@ -71,6 +101,10 @@ pub struct TracePoint {
     /// Estimated relative error of the mean lightmap value: the ambient
     /// term for the unshot light over the mean gathered so far.
     pub error_estimate: f64,
+    /// Relative RMSE against the reference at the probe texels, of the
+    /// lightmap as it would be if the pass stopped here (ambient term
+    /// included); `None` without `--reference`.
+    pub reference_error: Option<f64>,
 }
 
 /// What the bounce pass did, for the report.
@@ -84,8 +118,14 @@ pub struct BounceStats {
     pub stopped_by: String,
     /// Unshot power over the power put in when it stopped.
     pub unshot_fraction: f64,
-    /// Share of the shot power that landed on the scene (the rest escaped).
+    /// Closure the ambient term used: the share of the unshot power that
+    /// would land on the scene (from the direct pass's coverage, or
+    /// `shot_closure` without one).
     pub closure: f64,
+    /// Power that landed on the scene over the power shot (luminance, summed
+    /// on the GPU over every batch; 1 when nothing was shot). Not capped: above
+    /// 1 the form factors gave out more than was shot.
+    pub shot_closure: f64,
     /// Mean ambient term added for the light not yet shot when a budget
     /// stopped the pass (zero when it converged), L_lm RGB.
     pub ambient: [f32; 3],
@@ -254,6 +294,8 @@ pub fn run(
     let mut shot_total = 0.0f64;
     let mut received_total = 0.0f64;
     let mut stopped_by = "converged".to_string();
+    // Time spent reading back `--reference` probes, left out of the trace's clock.
+    let mut probe_seconds = 0.0f64;
     let mut last;
     loop {
         // Sum and select on the GPU; read back only the totals.
@@ -277,7 +319,11 @@ pub fn run(
         let closure = initial_closure.unwrap_or_else(|| measured_closure(received_total, shot_total));
         let ambient = ambient_term(stats.unshot, closure, mean_albedo, total_area);
         let error_estimate = if gathered > 0.0 { luminance(ambient) * total_area / gathered } else { 0.0 };
-        trace.push(TracePoint { seconds: start.elapsed().as_secs_f64(), shots, unshot_fraction, error_estimate });
+        let seconds = start.elapsed().as_secs_f64() - probe_seconds;
+        let probe_start = Instant::now();
+        let reference_error = probe_error(gpu, &resources.lightmap, options.probes.as_deref(), ambient)?;
+        probe_seconds += probe_start.elapsed().as_secs_f64();
+        trace.push(TracePoint { seconds, shots, unshot_fraction, error_estimate, reference_error });
 
         if unshot_fraction <= options.tolerance || stats.shooters == 0 {
             break;
@@ -328,10 +374,16 @@ pub fn run(
     } else {
         ambient_term(last.unshot, closure, mean_albedo, total_area).map(|a| a as f32)
     };
-    let weight = |i: usize| match coverage {
-        Some(c) if closure > 0.0 => (c[i] as f64 / closure) as f32,
-        Some(_) => 0.0,
-        None => 1.0,
+    // Weights with an area-weighted mean of 1, so the power spread is the
+    // ambient term's, whatever the coverage's distribution.
+    let mean_coverage = coverage.map(|c| {
+        let covered: f64 = texels.texels.iter().zip(c).map(|(t, c)| *c as f64 * t.area as f64).sum();
+        covered / total_area.max(1e-30)
+    });
+    let weight = |i: usize| match (coverage, mean_coverage) {
+        (Some(c), Some(mean)) if mean > 0.0 => (c[i] as f64 / mean) as f32,
+        (Some(_), _) => 0.0,
+        _ => 1.0,
     };
     for (i, (out, v)) in lightmap.iter_mut().zip(values).enumerate() {
         let w = weight(i);
@@ -346,9 +398,20 @@ pub fn run(
         stopped_by,
         unshot_fraction,
         closure,
+        shot_closure: if shot_total > 0.0 { received_total / shot_total } else { 1.0 },
         ambient,
         trace,
     })
+}
+
+/// `--reference`: the probes' error now, from a read-back of their values
+/// plus the ambient term (outside the timed part of the trace point).
+fn probe_error(gpu: &Gpu, lightmap: &wgpu::Buffer, probes: Option<&Probes>, ambient: [f64; 3]) -> Result<Option<f64>> {
+    let Some(probes) = probes.filter(|p| !p.texels.is_empty()) else {
+        return Ok(None);
+    };
+    let values: Vec<[f32; 4]> = gpu::read_elements(gpu, lightmap, &probes.texels)?;
+    Ok(Some(probes.relative_rmse(values.iter().map(|v| [0, 1, 2].map(|c| v[c] as f64 + ambient[c])))))
 }
 
 /// The share of `unshot` power that would land on the scene: each texel's
