@@ -9,7 +9,7 @@ use clap::{Parser, ValueEnum};
 
 use crate::config::{BakeOptions, Config, EnvironmentOptions};
 use crate::environment::LightMode;
-use crate::export::ExportOptions;
+use crate::export::{ExportOptions, Format};
 use crate::progress::LogMode;
 use crate::solve::{BounceOptions, SolveOptions};
 use crate::unwrap::{Backend, UnwrapOptions};
@@ -97,6 +97,15 @@ pub struct Args {
     #[arg(long, value_name = "EV", default_value_t = 0.0, allow_hyphen_values = true)]
     pub exposure: f32,
 
+    /// Output packaging: `glb` (one file, images embedded) or `gltf` (NAME.gltf + NAME.bin + image files)
+    #[arg(long, value_name = "FORMAT", default_value_t = Format::default())]
+    pub format: Format,
+
+    /// Bake into the input's own TEXCOORD_1 when every primitive has one inside [0, 1] with no
+    /// overlapping triangles; otherwise unwrap as usual, with a notice saying what failed
+    #[arg(long)]
+    pub keep_uv1: bool,
+
     /// Use the GPU adapter whose name contains this text (e.g. "llvmpipe", "NVIDIA")
     #[arg(long, value_name = "NAME")]
     pub adapter: Option<String>,
@@ -180,6 +189,7 @@ impl Args {
                     max_atlas_size: self.max_atlas_size,
                     padding: self.padding,
                 },
+                keep_uv1: self.keep_uv1,
                 solve: SolveOptions {
                     shadow_map_size: self.shadow_map_size,
                     bounce: BounceOptions {
@@ -191,7 +201,7 @@ impl Args {
                     },
                     ..SolveOptions::default()
                 },
-                export: ExportOptions { exposure: self.exposure, ..ExportOptions::default() },
+                export: ExportOptions { exposure: self.exposure, format: self.format, ..ExportOptions::default() },
             },
             log,
         })
@@ -220,6 +230,8 @@ mod tests {
         assert_eq!(config.environment_options.lights, LightMode::default());
         assert_eq!(config.environment_options.intensity, 1.0);
         assert_eq!(config.bake.export.exposure, 0.0);
+        assert_eq!(config.bake.export.format, Format::Glb);
+        assert!(!config.bake.keep_uv1);
         assert_eq!(config.bake.solve.bounce.tolerance, 0.01);
         assert_eq!(config.bake.solve.bounce.max_shots, None);
         assert_eq!(config.bake.solve.bounce.patches, 1024);
@@ -258,6 +270,17 @@ mod tests {
             "llvmpipe",
             "--log-format",
             "json",
+            "--format",
+            "gltf",
+            "--keep-uv1",
+            "--tolerance",
+            "0.05",
+            "--max-shots",
+            "100",
+            "--max-time",
+            "2.5",
+            "--patches",
+            "300",
         ])
         .unwrap();
         assert_eq!(config.inputs.len(), 2);
@@ -279,6 +302,8 @@ mod tests {
         assert_eq!(config.bake.solve.bounce.patches, 300);
         assert_eq!(config.adapter.as_deref(), Some("llvmpipe"));
         assert_eq!(config.log, LogMode::Json);
+        assert_eq!(config.bake.export.format, Format::Gltf);
+        assert!(config.bake.keep_uv1);
         assert_eq!(parse(&["a.glb", "-q"]).unwrap().log, LogMode::Quiet);
     }
 
@@ -296,6 +321,7 @@ mod tests {
             &["a.glb", "--patches", "0"],
             &["a.glb", "--lights", "sphere:3"],
             &["a.glb", "--unwrapper", "magic"],
+            &["a.glb", "--format", "obj"],
             &[],
         ] {
             assert!(parse(bad).is_err(), "{bad:?} was accepted");
