@@ -17,9 +17,10 @@ use crate::unwrap::{Backend, UnwrapOptions};
 /// Bake diffuse global illumination from an HDR environment into glTF lightmaps.
 ///
 /// Each input gets `OUT/<name>.glb` (TEXCOORD_1 plus the baked lighting, shown
-/// by any glTF viewer) and `OUT/<name>.lightmap0.exr` (the HDR lightmap,
-/// L_lm = E/π per texel); the run writes `OUT/report.json`. Outputs appear
-/// only when the whole run succeeds; inputs are never modified.
+/// by any glTF viewer; the input's own material with an RGBM lightmap one
+/// KHR_materials_variants variant away) and `OUT/<name>.lightmap0.exr` (the
+/// HDR lightmap, L_lm = E/π per texel); the run writes `OUT/report.json`.
+/// Outputs appear only when the whole run succeeds; inputs are never modified.
 ///
 /// Exit codes: 0 success, 2 error (one line on stderr names the file and the problem).
 #[derive(Parser, Debug)]
