@@ -388,7 +388,17 @@ fn keep_uv1_bakes_into_a_valid_uv_set() {
         let uv = |asset: &SourceAsset| floats(asset, attribute(&asset.json, mesh, 0, "TEXCOORD_1").unwrap());
         assert_eq!(uv(&after), uv(&before), "mesh {mesh}: the lightmap lies in the input's TEXCOORD_1");
         assert!(attribute(&after.json, mesh, 0, "TEXCOORD_2").is_none(), "nothing moved aside");
+        // Baking a baked file again keeps one pair of variants, the input's PBR material in the second.
+        let mappings = &after.json["meshes"][mesh]["primitives"][0]["extensions"]["KHR_materials_variants"]["mappings"];
+        assert_eq!(mappings.as_array().unwrap().len(), 2, "{mappings}");
+        let pbr = &after.json["materials"][mappings[1]["material"].as_u64().unwrap() as usize];
+        assert_eq!(pbr["name"], ["ground", "sphere"][mesh]);
+        assert!(pbr["extensions"].get("KHR_materials_unlit").is_none());
     }
+    assert_eq!(
+        after.json["extensions"]["KHR_materials_variants"]["variants"],
+        json!([{ "name": "baked" }, { "name": "pbr+lightmap" }])
+    );
     eprintln!("kept: {:?}", scene.atlas);
 }
 

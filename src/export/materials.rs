@@ -11,7 +11,9 @@
 //!
 //! KHR_materials_variants offers both: variant `baked` maps to the unlit
 //! material, `pbr+lightmap` to the lightmapped one. Every extension bake adds
-//! is listed in `extensionsUsed` only, never in `extensionsRequired`.
+//! is listed in `extensionsUsed` only, never in `extensionsRequired`. A baked
+//! file baked again keeps one pair of variants: the material its
+//! `pbr+lightmap` variant mapped to is taken as the original.
 //!
 //! The input's materials keep their indices. One gains `MOZ_lightmap` in
 //! place when only baked primitives use it; a copy carries it instead when a
@@ -48,13 +50,16 @@ pub fn assign(document: &mut Document, rewritten: &[Rewritten], textures: Textur
     let mut unlit: BTreeMap<Option<usize>, usize> = BTreeMap::new();
     let mut lightmapped: BTreeMap<(Option<usize>, Option<u32>), usize> = BTreeMap::new();
     for r in rewritten {
-        let baked = *unlit.entry(r.material).or_insert_with(|| push_unlit(document, r.material, textures.baked));
+        let primitive = &mut document.json["meshes"][r.mesh]["primitives"][r.primitive];
+        // Re-baking a baked file: its `pbr+lightmap` variant holds the original material.
+        let material = take_mappings(primitive, variants).or(r.material);
+        let baked = *unlit.entry(material).or_insert_with(|| push_unlit(document, material, textures.baked));
         // A material follows moved UVs only if it samples texCoord 1.
-        let original = r.material.map(|m| document.json["materials"][m].clone());
+        let original = material.map(|m| document.json["materials"][m].clone());
         let remap = r.moved_uv1_to.filter(|_| original.as_ref().is_some_and(|m| uses_texcoord(m, 1)));
         let pbr = *lightmapped
-            .entry((r.material, remap))
-            .or_insert_with(|| lightmapped_material(document, r.material, remap, &others, textures.lightmap));
+            .entry((material, remap))
+            .or_insert_with(|| lightmapped_material(document, material, remap, &others, textures.lightmap));
         let primitive = &mut document.json["meshes"][r.mesh]["primitives"][r.primitive];
         primitive["material"] = json!(baked);
         let extension = &mut primitive["extensions"]["KHR_materials_variants"];
@@ -70,17 +75,45 @@ pub fn assign(document: &mut Document, rewritten: &[Rewritten], textures: Textur
     }
 }
 
-/// Appends the two variants to the document's list (made if missing);
-/// returns their indices.
+/// The indices of the two variants in the document's list (made if
+/// missing): those of a previous bake if the input is one, else appended.
 fn add_variants(document: &mut Document) -> (usize, usize) {
     let root = &mut document.json["extensions"]["KHR_materials_variants"];
     if !root.get("variants").is_some_and(Value::is_array) {
         root["variants"] = json!([]);
     }
     let list = root["variants"].as_array_mut().unwrap();
-    list.push(json!({ "name": VARIANT_BAKED }));
-    list.push(json!({ "name": VARIANT_LIGHTMAPPED }));
-    (list.len() - 2, list.len() - 1)
+    let mut index_of = |name: &str| match list.iter().position(|v| v["name"] == name) {
+        Some(i) => i,
+        None => {
+            list.push(json!({ "name": name }));
+            list.len() - 1
+        }
+    };
+    (index_of(VARIANT_BAKED), index_of(VARIANT_LIGHTMAPPED))
+}
+
+/// Removes the primitive's mappings to the two variants (a previous bake's)
+/// and returns the material its `pbr+lightmap` variant mapped to, if any.
+fn take_mappings(primitive: &mut Value, (baked, lightmapped): (usize, usize)) -> Option<usize> {
+    let mappings = primitive.pointer_mut("/extensions/KHR_materials_variants/mappings")?.as_array_mut()?;
+    let mut previous = None;
+    mappings.retain_mut(|mapping| {
+        let material = mapping.get("material").and_then(Value::as_u64).map(|m| m as usize);
+        let Some(variants) = mapping.get_mut("variants").and_then(Value::as_array_mut) else { return true };
+        if variants.iter().any(|v| v.as_u64() == Some(lightmapped as u64)) {
+            previous = material;
+        }
+        variants.retain(|v| v.as_u64() != Some(baked as u64) && v.as_u64() != Some(lightmapped as u64));
+        !variants.is_empty()
+    });
+    previous
+}
+
+/// A material's name without the suffix a previous bake gave it.
+fn base_name(material: &Value, fallback: String) -> String {
+    let name = material.get("name").and_then(Value::as_str).map_or(fallback, str::to_string);
+    name.strip_suffix(&format!(" ({VARIANT_LIGHTMAPPED})")).map(str::to_string).unwrap_or(name)
 }
 
 /// Materials used (directly or through a variant) by primitives bake leaves as they are.
@@ -108,7 +141,7 @@ fn materials_of_other_primitives(document: &Document, rewritten: &[Rewritten]) -
 /// alpha, alpha mode and sidedness.
 fn push_unlit(document: &mut Document, original: Option<usize>, texture: usize) -> usize {
     let source = original.map(|m| document.json["materials"][m].clone()).unwrap_or(Value::Null);
-    let name = source.get("name").and_then(Value::as_str).unwrap_or("default");
+    let name = base_name(&source, "default".into());
     let alpha = source.pointer("/pbrMetallicRoughness/baseColorFactor/3").and_then(Value::as_f64).unwrap_or(1.0);
     let mut material = json!({
         "name": format!("{name} ({VARIANT_BAKED})"),
@@ -148,7 +181,7 @@ fn lightmapped_material(
             if let Some(to) = remap {
                 remap_texcoord(&mut copy, 1, to as u64);
             }
-            let name = copy.get("name").and_then(Value::as_str).map_or_else(|| format!("material {m}"), str::to_string);
+            let name = base_name(&copy, format!("material {m}"));
             copy["name"] = json!(format!("{name} ({VARIANT_LIGHTMAPPED})"));
             copy["extensions"]["MOZ_lightmap"] = extension;
             document.push("materials", copy)
