@@ -1,16 +1,32 @@
 #!/usr/bin/env sh
-# Installs what bake needs at run time on Debian/Ubuntu: the Vulkan loader and
-# Mesa's drivers, whose lavapipe runs wgpu on the CPU when there is no GPU;
-# and make, which runs the build-step example (pipeline/Makefile) and its test.
-# Does nothing when they are already installed.
+# Installs what bake and its tests need on Debian/Ubuntu, doing nothing that is
+# already done:
+# - the Vulkan loader and Mesa's drivers, whose lavapipe runs wgpu on the CPU
+#   when there is no GPU;
+# - make, which runs the build-step example (pipeline/Makefile) and its test;
+# - Node.js (when there is no `node`) and the Khronos glTF validator, from npm
+#   at the version pinned in pipeline/package-lock.json, into
+#   pipeline/node_modules (ignored by git); tests/validator.rs runs it through
+#   pipeline/validate.mjs.
 set -eu
+cd "$(dirname "$0")"
+if [ "$(id -u)" -eq 0 ]; then sudo=""; else sudo="sudo"; fi
+
 packages="mesa-vulkan-drivers libvulkan1 make"
+command -v node >/dev/null 2>&1 && command -v npm >/dev/null 2>&1 || packages="$packages nodejs npm"
 missing=""
 for p in $packages; do
     dpkg -s "$p" >/dev/null 2>&1 || missing="$missing $p"
 done
-[ -z "$missing" ] && exit 0
-if [ "$(id -u)" -eq 0 ]; then sudo=""; else sudo="sudo"; fi
-echo "installing:$missing" >&2
-$sudo apt-get update -q
-$sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -q $missing
+if [ -n "$missing" ]; then
+    echo "installing:$missing" >&2
+    $sudo apt-get update -q
+    $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -q $missing
+fi
+
+pinned=$(node -p "require('./package-lock.json').packages['node_modules/gltf-validator'].version")
+installed=$(node -p "require('./node_modules/gltf-validator/package.json').version" 2>/dev/null || true)
+if [ "$installed" != "$pinned" ]; then
+    echo "installing: gltf-validator $pinned (npm, into pipeline/node_modules)" >&2
+    npm ci --no-audit --no-fund --loglevel=error
+fi

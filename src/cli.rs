@@ -10,7 +10,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 use crate::check::{self, CheckOptions};
 use crate::config::{BakeOptions, Config, EnvironmentOptions};
 use crate::environment::LightMode;
-use crate::export::ExportOptions;
+use crate::export::{ExportOptions, Format};
 use crate::progress::LogMode;
 use crate::report::{ReferenceCheck, ReportOptions};
 use crate::solve::{BounceOptions, SolveOptions};
@@ -19,10 +19,11 @@ use crate::unwrap::{Backend, UnwrapOptions};
 /// Bake diffuse global illumination from an HDR environment into glTF lightmaps.
 ///
 /// Each input gets `OUT/<name>.glb` (TEXCOORD_1 plus the baked lighting, shown
-/// by any glTF viewer) and `OUT/<name>.lightmap0.exr` (the HDR lightmap,
-/// L_lm = E/π per texel); the run writes `OUT/report.json`. Outputs appear
-/// only when the whole run succeeds; inputs are never modified. `bake check`
-/// compares a bake's report with a golden one (see `bake check --help`).
+/// by any glTF viewer; the input's own material with an RGBM lightmap one
+/// KHR_materials_variants variant away) and `OUT/<name>.lightmap0.exr` (the
+/// HDR lightmap, L_lm = E/π per texel); the run writes `OUT/report.json`.
+/// Outputs appear only when the whole run succeeds; inputs are never modified.
+/// `bake check` compares a bake's report with a golden one (see `bake check --help`).
 ///
 /// Exit codes: 0 success, 1 `bake check` failed, 2 error (one line on stderr
 /// names the file and the problem).
@@ -110,6 +111,15 @@ pub struct Args {
     /// Exposure in stops of the 8-bit preview texture viewers show (the EXR is not scaled)
     #[arg(long, value_name = "EV", default_value_t = 0.0, allow_hyphen_values = true)]
     pub exposure: f32,
+
+    /// Output packaging: `glb` (one file, images embedded) or `gltf` (NAME.gltf + NAME.bin + image files)
+    #[arg(long, value_name = "FORMAT", default_value_t = Format::default())]
+    pub format: Format,
+
+    /// Bake into the input's own TEXCOORD_1 when every primitive has one inside [0, 1] with no
+    /// overlapping triangles; otherwise unwrap as usual, with a notice saying what failed
+    #[arg(long)]
+    pub keep_uv1: bool,
 
     /// Use the GPU adapter whose name contains this text (e.g. "llvmpipe", "NVIDIA")
     #[arg(long, value_name = "NAME")]
@@ -253,6 +263,7 @@ impl Args {
                     max_atlas_size: self.max_atlas_size,
                     padding: self.padding,
                 },
+                keep_uv1: self.keep_uv1,
                 solve: SolveOptions {
                     shadow_map_size: self.shadow_map_size,
                     bounce: BounceOptions {
@@ -264,7 +275,7 @@ impl Args {
                     },
                     ..SolveOptions::default()
                 },
-                export: ExportOptions { exposure: self.exposure, ..ExportOptions::default() },
+                export: ExportOptions { exposure: self.exposure, format: self.format, ..ExportOptions::default() },
                 reference: self.reference.map(|texels| ReferenceCheck {
                     texels,
                     samples: self.reference_samples,
@@ -301,6 +312,8 @@ mod tests {
         assert_eq!(config.environment_options.lights, LightMode::default());
         assert_eq!(config.environment_options.intensity, 1.0);
         assert_eq!(config.bake.export.exposure, 0.0);
+        assert_eq!(config.bake.export.format, Format::Glb);
+        assert!(!config.bake.keep_uv1);
         assert_eq!(config.bake.solve.bounce.tolerance, 0.01);
         assert_eq!(config.bake.solve.bounce.max_shots, None);
         assert_eq!(config.bake.solve.bounce.patches, 1024);
@@ -348,6 +361,9 @@ mod tests {
             "--log-format",
             "json",
             "--plot",
+            "--format",
+            "gltf",
+            "--keep-uv1",
         ])
         .unwrap();
         assert_eq!(config.inputs.len(), 2);
@@ -370,6 +386,8 @@ mod tests {
         assert_eq!(config.adapter.as_deref(), Some("llvmpipe"));
         assert_eq!(config.log, LogMode::Json);
         assert!(config.report.plot);
+        assert_eq!(config.bake.export.format, Format::Gltf);
+        assert!(config.bake.keep_uv1);
         assert_eq!(parse(&["a.glb", "-q"]).unwrap().log, LogMode::Quiet);
     }
 
@@ -416,6 +434,7 @@ mod tests {
             &["a.glb", "--patches", "0"],
             &["a.glb", "--lights", "sphere:3"],
             &["a.glb", "--unwrapper", "magic"],
+            &["a.glb", "--format", "obj"],
             &[],
         ] {
             assert!(parse(bad).is_err(), "{bad:?} was accepted");

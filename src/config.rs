@@ -38,6 +38,9 @@ impl Default for EnvironmentOptions {
 #[derive(Clone, Debug, Default)]
 pub struct BakeOptions {
     pub unwrap: UnwrapOptions,
+    /// Bake into the input's TEXCOORD_1 when every primitive has a valid one
+    /// (`--keep-uv1`); otherwise unwrap, with a notice naming what failed.
+    pub keep_uv1: bool,
     pub solve: SolveOptions,
     pub export: ExportOptions,
     /// `--reference`: estimate some texels with the CPU reference and trace the error at them.

@@ -344,6 +344,7 @@ pub fn files() -> anyhow::Result<Vec<(String, Vec<u8>)>> {
     let mut files = vec![
         ("sphere_on_ground.glb".to_string(), sphere_on_ground().to_glb()),
         ("sphere.glb".to_string(), lone_sphere().to_glb()),
+        ("everything.glb".to_string(), everything()),
     ];
     let maps = [
         ("sky_constant", EnvironmentMap::constant([1.0; 3])),
@@ -383,4 +384,176 @@ pub fn lone_sphere() -> SceneBuilder {
     let mut scene = SceneBuilder::new();
     scene.object("sphere", &MeshData::sphere(1.0, 48, 24), [0.8, 0.8, 0.8, 1.0], [0.0; 3], Placement::default());
     scene
+}
+
+/// A scene that uses everything export must carry through (`fixtures/everything.glb`):
+///
+/// - node 0 `ground`: mesh 0 — primitive 0 baked, with TANGENT, COLOR_0 (normalized bytes), a
+///   second UV set (TEXCOORD_1) and material 0 (`ground`: base-colour texture with
+///   KHR_texture_transform); primitive 1 draws POINTS (material 3, not baked). Node extras and an
+///   unknown extension (`ACME_marker`, in `extensionsUsed`).
+/// - nodes 1 and 2 `crate A`/`crate B`: the same mesh 1 (`crate`), whose material 1 samples its
+///   occlusion map through TEXCOORD_1.
+/// - nodes 3 `flag (static)` and 4 `flag (skinned)`: the same mesh 2 (`flag`, with JOINTS_0,
+///   WEIGHTS_0, TEXCOORD_1, material 1) drawn static and skinned (skin 0, joints: nodes 5 and 6).
+/// - node 7 `spinner` (mesh 3 `orb`, material 2) turned by animation 0; animation 1 bends joint 6.
+/// - node 8 `camera` with camera 0; extras on the root, scene, mesh, material, accessor, camera,
+///   animation and skin; two images, one in a buffer view and one as a data URI.
+pub fn everything() -> Vec<u8> {
+    use base64::Engine as _;
+    const FLOAT: u32 = 5126;
+    const UNSIGNED_BYTE: u32 = 5121;
+    let mut scene = SceneBuilder::new();
+    let checker = checker_png([200, 160, 90], [90, 60, 40]);
+    let dots = checker_png([255, 255, 255], [170, 170, 170]);
+    let checker_view = scene.push_view(&checker, None);
+
+    let ground_material = scene.material("ground", [0.8, 0.8, 0.8, 1.0], [0.0; 3]);
+    let crate_material = scene.material("crate", [0.7, 0.5, 0.3, 1.0], [0.0; 3]);
+    let orb_material = scene.material("orb", [0.9, 0.2, 0.2, 1.0], [0.0; 3]);
+    let points_material = scene.material("markers", [1.0, 1.0, 0.0, 1.0], [0.0; 3]);
+    scene.materials[ground_material]["pbrMetallicRoughness"]["baseColorTexture"] = json!({
+        "index": 0, "extensions": { "KHR_texture_transform": { "offset": [0.0, 0.0], "scale": [4.0, 4.0] } },
+    });
+    scene.materials[ground_material]["extras"] = json!({ "surface": "concrete" });
+    scene.materials[crate_material]["pbrMetallicRoughness"]["baseColorTexture"] = json!({ "index": 0 });
+    scene.materials[crate_material]["occlusionTexture"] = json!({ "index": 1, "texCoord": 1, "strength": 0.8 });
+    scene.materials[crate_material]["extensions"] = json!({ "ACME_marker": { "kind": "material" } });
+    scene.materials[orb_material]["doubleSided"] = json!(true);
+
+    // Mesh 0: the ground, with extra attributes, and a points primitive.
+    let plane = MeshData::plane(6.0, 6.0, 2);
+    let ground = scene.mesh("ground", &plane, Some(ground_material));
+    let tangents = vec![[1.0f32, 0.0, 0.0, 1.0]; plane.positions.len()];
+    let colours: Vec<u8> = (0..plane.positions.len()).flat_map(|i| [255, (i * 20) as u8, 128, 255]).collect();
+    let uv1 = plane.uv0.clone();
+    let attributes = [
+        ("TANGENT", scene.push_floats(&tangents, "VEC4", false)),
+        ("COLOR_0", scene.push_raw(&colours, UNSIGNED_BYTE, plane.positions.len(), "VEC4", true)),
+        ("TEXCOORD_1", scene.push_floats(&uv1, "VEC2", false)),
+    ];
+    for (name, accessor) in attributes {
+        scene.meshes[ground]["primitives"][0]["attributes"][name] = json!(accessor);
+    }
+    let position = scene.meshes[ground]["primitives"][0]["attributes"]["POSITION"].as_u64().unwrap() as usize;
+    scene.accessors[position]["extras"] = json!({ "unit": "metre" });
+    let marks = [[-2.0f32, 0.05, -2.0], [2.0, 0.05, -2.0], [2.0, 0.05, 2.0], [-2.0, 0.05, 2.0]];
+    let mark_colours: Vec<u8> = (0..4).flat_map(|i| [255, 255, (i * 60) as u8, 255]).collect();
+    let points = json!({
+        "attributes": {
+            "POSITION": scene.push_floats(&marks, "VEC3", true),
+            "COLOR_0": scene.push_raw(&mark_colours, UNSIGNED_BYTE, 4, "VEC4", true),
+        },
+        "mode": 0,
+        "material": points_material,
+    });
+    scene.meshes[ground]["primitives"].as_array_mut().unwrap().push(points);
+
+    // Mesh 1: a crate with a second UV set its occlusion map reads.
+    let cuboid = MeshData::cuboid([0.6, 0.6, 0.6]);
+    let crate_mesh = scene.mesh("crate", &cuboid, Some(crate_material));
+    let uv1: Vec<[f32; 2]> = cuboid.uv0.iter().map(|uv| [0.25 + 0.5 * uv[0], 0.25 + 0.5 * uv[1]]).collect();
+    scene.meshes[crate_mesh]["primitives"][0]["attributes"]["TEXCOORD_1"] =
+        json!(scene.push_floats(&uv1, "VEC2", false));
+    scene.meshes[crate_mesh]["extras"] = json!({ "stackable": true });
+
+    // Mesh 2: a flag, skinned to two joints, with the crate's material.
+    let cloth = MeshData::plane(1.0, 1.0, 2);
+    let flag = scene.mesh("flag", &cloth, Some(crate_material));
+    let joints: Vec<u8> = cloth.positions.iter().flat_map(|_| [0, 1, 0, 0]).collect();
+    let weights: Vec<[f32; 4]> =
+        cloth.uv0.iter().map(|uv| [0.25 + 0.5 * uv[1], 0.75 - 0.5 * uv[1], 0.0, 0.0]).collect();
+    let attributes = [
+        ("TEXCOORD_1", scene.push_floats(&cloth.uv0, "VEC2", false)),
+        ("JOINTS_0", scene.push_raw(&joints, UNSIGNED_BYTE, cloth.positions.len(), "VEC4", false)),
+        ("WEIGHTS_0", scene.push_floats(&weights, "VEC4", false)),
+    ];
+    for (name, accessor) in attributes {
+        scene.meshes[flag]["primitives"][0]["attributes"][name] = json!(accessor);
+    }
+
+    // Mesh 3: an orb.
+    let orb = scene.mesh("orb", &MeshData::sphere(0.4, 12, 6), Some(orb_material));
+
+    // Nodes, in the order the output must keep.
+    let ground_node = scene.node("ground", ground, Placement::default());
+    scene.nodes[ground_node]["extras"] = json!({ "layer": "static" });
+    scene.nodes[ground_node]["extensions"] = json!({ "ACME_marker": { "kind": "node" } });
+    scene.node("crate A", crate_mesh, Placement::at(Vec3::new(-1.5, 0.3, 1.0)));
+    let turned = Quat::from_xyzw(0.0, std::f32::consts::FRAC_1_SQRT_2, 0.0, std::f32::consts::FRAC_1_SQRT_2);
+    scene.node("crate B", crate_mesh, Placement::at(Vec3::new(1.5, 0.3, 1.0)).rotated(turned));
+    scene.node("flag (static)", flag, Placement::at(Vec3::new(0.0, 0.8, -1.5)));
+    let skinned = scene.node("flag (skinned)", flag, Placement::default());
+    scene.nodes[skinned]["skin"] = json!(0);
+    scene.nodes.push(json!({ "name": "flag root joint", "translation": [-2.0, 0.0, 0.0], "children": [6] }));
+    scene.nodes.push(json!({ "name": "flag tip joint", "translation": [0.0, 1.0, 0.0] }));
+    let spinner = scene.node("spinner", orb, Placement::at(Vec3::new(0.0, 1.0, 1.5)));
+    scene.nodes.push(json!({ "name": "camera", "camera": 0, "translation": [0.0, 2.0, 8.0] }));
+
+    // Skin: inverse bind matrices (column-major) undo each joint's world translation.
+    let inverse_bind: Vec<[f32; 16]> = [[2.0f32, 0.0, 0.0], [2.0, -1.0, 0.0]]
+        .iter()
+        .map(|t| [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, t[0], t[1], t[2], 1.0])
+        .collect();
+    let inverse_bind = scene.push_raw(bytemuck::cast_slice(&inverse_bind), FLOAT, 2, "MAT4", false);
+
+    // Animations: the orb turns about +Y; the flag's tip joint bends about +X.
+    let times = scene.push_floats(&[[0.0f32], [1.0], [2.0]], "SCALAR", true);
+    let h = std::f32::consts::FRAC_1_SQRT_2;
+    let spin = scene.push_floats(&[[0.0f32, 0.0, 0.0, 1.0], [0.0, h, 0.0, h], [0.0, 1.0, 0.0, 0.0]], "VEC4", false);
+    let bend = scene.push_floats(&[[0.0f32, 0.0, 0.0, 1.0], [h, 0.0, 0.0, h], [0.0, 0.0, 0.0, 1.0]], "VEC4", false);
+    for accessor in [times, spin, bend, inverse_bind] {
+        // Animation and skin data must not sit in vertex buffer views.
+        let view = scene.accessors[accessor]["bufferView"].as_u64().unwrap() as usize;
+        scene.buffer_views[view].as_object_mut().unwrap().remove("target");
+    }
+
+    let mut doc = scene.document();
+    doc["scenes"] =
+        json!([{ "name": "everything", "nodes": [0, 1, 2, 3, 4, 5, spinner, 8], "extras": { "lit": "sky" } }]);
+    doc["skins"] = json!([{ "name": "flag rig", "joints": [5, 6], "skeleton": 5, "inverseBindMatrices": inverse_bind,
+        "extras": { "bones": 2 } }]);
+    doc["animations"] = json!([
+        { "name": "spin", "channels": [{ "sampler": 0, "target": { "node": spinner, "path": "rotation" } }],
+          "samplers": [{ "input": times, "output": spin, "interpolation": "LINEAR" }], "extras": { "loop": true } },
+        { "name": "wave", "channels": [{ "sampler": 0, "target": { "node": 6, "path": "rotation" } }],
+          "samplers": [{ "input": times, "output": bend }] },
+    ]);
+    doc["cameras"] = json!([{ "name": "overview", "type": "perspective",
+        "perspective": { "yfov": 0.8, "znear": 0.1, "zfar": 100.0, "aspectRatio": 1.5 }, "extras": { "rig": "tripod" } }]);
+    doc["images"] = json!([
+        { "name": "checker", "bufferView": checker_view, "mimeType": "image/png" },
+        { "name": "dots", "uri": format!("data:image/png;base64,{}", base64::engine::general_purpose::STANDARD.encode(&dots)) },
+    ]);
+    doc["samplers"] = json!([{ "magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497 }]);
+    doc["textures"] =
+        json!([{ "name": "checker", "source": 0, "sampler": 0 }, { "name": "dots", "source": 1, "sampler": 0 }]);
+    doc["extensionsUsed"] = json!(["KHR_texture_transform", "ACME_marker"]);
+    doc["extensions"] = json!({ "ACME_marker": { "kind": "root", "version": 1 } });
+    doc["extras"] = json!({ "project": "bake fixtures", "revision": 3 });
+    doc["asset"]["copyright"] = json!("CC0");
+    let json = serde_json::to_vec(&doc).expect("fixture JSON serializes");
+    crate::export::glb::encode(&json, &scene.binary)
+}
+
+impl SceneBuilder {
+    /// Appends raw accessor data (`count` elements of `kind`) in a buffer view of its own.
+    fn push_raw(&mut self, bytes: &[u8], component_type: u32, count: usize, kind: &str, normalized: bool) -> usize {
+        let view = self.push_view(bytes, Some(34962));
+        let mut accessor = json!({ "bufferView": view, "componentType": component_type, "count": count, "type": kind });
+        if normalized {
+            accessor["normalized"] = json!(true);
+        }
+        self.accessors.push(accessor);
+        self.accessors.len() - 1
+    }
+}
+
+/// A 4×4 two-colour checkerboard as an RGB PNG.
+fn checker_png(a: [u8; 3], b: [u8; 3]) -> Vec<u8> {
+    let rgb: Vec<u8> = (0..16).flat_map(|i| if (i % 4 + i / 4) % 2 == 0 { a } else { b }).collect();
+    let mut png = Vec::new();
+    let encoder = image::codecs::png::PngEncoder::new(&mut png);
+    image::ImageEncoder::write_image(encoder, &rgb, 4, 4, image::ExtendedColorType::Rgb8).expect("PNG encodes");
+    png
 }

@@ -54,6 +54,8 @@ pub struct Baked {
     pub notices: Vec<String>,
     /// `--reference`: the bake's error against the CPU reference.
     pub reference: Option<report::ReferenceReport>,
+    /// The atlas is the input's own TEXCOORD_1 (`--keep-uv1`), not a new unwrap.
+    pub uv1_reused: bool,
 }
 
 /// Times `f` as stage `name` of `scene` and measures its memory, reporting to `progress`.
@@ -86,13 +88,22 @@ pub fn bake_scene(
     let name = scene.name.clone();
     let mut stages = Vec::new();
     let mut notices = scene.notices.clone();
-    let atlas = stage(gpu, progress, &mut stages, &name, "unwrap", |_| {
+    let (atlas, uv1_reused) = stage(gpu, progress, &mut stages, &name, "unwrap", |_| {
         let meshes: Vec<unwrap::MeshInput> = scene
             .primitives
             .iter()
             .map(|p| unwrap::MeshInput { positions: &p.positions, indices: &p.indices })
             .collect();
-        let atlas = unwrap::run(&meshes, &options.unwrap).context("unwrap")?;
+        let kept = options.keep_uv1.then(|| existing_uv1(&scene, &meshes, &options.unwrap));
+        let (atlas, reused) = match kept {
+            Some(Ok(atlas)) => (atlas, true),
+            Some(Err(why)) => {
+                let mut atlas = unwrap::run(&meshes, &options.unwrap).context("unwrap")?;
+                atlas.notices.insert(0, format!("--keep-uv1: TEXCOORD_1 not reused: {why}; unwrapped instead"));
+                (atlas, false)
+            }
+            None => (unwrap::run(&meshes, &options.unwrap).context("unwrap")?, false),
+        };
         let summary = format!(
             "{}×{} atlas, {} charts, {:.0}% used, {:.3} texels/m",
             atlas.width,
@@ -101,7 +112,7 @@ pub fn bake_scene(
             atlas.utilization * 100.0,
             atlas.texels_per_unit
         );
-        Ok((atlas, summary))
+        Ok(((atlas, reused), summary))
     })?;
     for notice in &atlas.notices {
         progress.notice(notice);
@@ -161,7 +172,27 @@ pub fn bake_scene(
         noise,
         error: probes.relative_rmse(probes.texels.iter().map(|&i| solution.lightmap[i as usize].map(|v| v as f64))),
     });
-    Ok(Baked { scene, atlas, texels, solution, stages, notices, reference })
+    Ok(Baked { scene, atlas, texels, solution, stages, notices, reference, uv1_reused })
+}
+
+/// The scene's own TEXCOORD_1 as the atlas (`--keep-uv1`), or why not, naming
+/// the primitive and the check it failed.
+fn existing_uv1(scene: &Scene, meshes: &[unwrap::MeshInput], options: &unwrap::UnwrapOptions) -> Result<Atlas, String> {
+    let name = |i: usize| {
+        let p = &scene.primitives[i];
+        format!("mesh {} primitive {} on node {}", p.mesh, p.primitive, p.node)
+    };
+    let mut uvs = Vec::new();
+    for (i, p) in scene.primitives.iter().enumerate() {
+        let primitive = scene.source.document.meshes().nth(p.mesh).and_then(|m| m.primitives().nth(p.primitive));
+        let Some(accessor) = primitive.and_then(|q| q.get(&gltf::Semantic::TexCoords(1))) else {
+            return Err(format!("{} has no TEXCOORD_1", name(i)));
+        };
+        let uv = asset::accessor::read_vectors::<2>(&scene.source, &accessor);
+        uvs.push(uv.map_err(|e| format!("{}: TEXCOORD_1: {e}", name(i)))?);
+    }
+    let uvs: Vec<&[[f32; 2]]> = uvs.iter().map(Vec::as_slice).collect();
+    unwrap::from_existing(meshes, &uvs, options).map_err(|e| e.describe(name))
 }
 
 /// Loads the environment and extracts its lights.
@@ -215,7 +246,7 @@ pub fn preflight(config: &Config) -> Result<()> {
 /// `config.output` together with `report.json` only if everything succeeded.
 pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Report> {
     let start = Instant::now();
-    let staging = output::Staging::new(&config.output, &config.inputs)?;
+    let mut staging = output::Staging::new(&config.output, &config.inputs)?;
     let mut inputs = Vec::new();
     for input in &config.inputs {
         inputs.push(InputFile::hash("scene", input)?);
@@ -257,6 +288,7 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
         for notice in &scene.notices {
             progress.notice(notice);
         }
+        staging.protect(export::source_files(&scene.source));
         if environment.is_none() && !scene.materials.iter().any(|m| m.emission.iter().any(|&e| e > 0.0)) {
             bail!("input '{}': nothing lights the scene: give --env or use emissive materials", input.display());
         }
@@ -265,15 +297,8 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
             .with_context(|| format!("input '{}'", input.display()))?;
         stages.extend(baked.stages.iter().cloned());
         let exported = stage(gpu, progress, &mut stages, &baked.scene.name, "export", |_| {
-            let stats = export::run(
-                &baked.scene,
-                &baked.atlas,
-                &baked.texels,
-                &baked.solution,
-                &config.bake.export,
-                staging.dir(),
-            )
-            .with_context(|| format!("input '{}': export", input.display()))?;
+            let stats = export::run(&baked, &config.bake.export, staging.dir())
+                .with_context(|| format!("input '{}': export", input.display()))?;
             let summary = format!("{} files", stats.files.len());
             Ok((stats, summary))
         })?;
@@ -347,7 +372,7 @@ fn scene_report(
             texels_per_unit: baked.atlas.texels_per_unit,
             charts: baked.atlas.chart_count,
             utilization: baked.atlas.utilization,
-            unwrapper: options.unwrap.backend.to_string(),
+            unwrapper: if baked.uv1_reused { "input TEXCOORD_1".into() } else { options.unwrap.backend.to_string() },
             energy: report::atlas_energy(&baked.texels, &baked.solution),
         },
         texels: TexelReport {

@@ -12,6 +12,8 @@ use anyhow::{Context, Result, bail};
 pub struct Staging {
     dir: PathBuf,
     output: PathBuf,
+    /// Input files (canonical paths) no output may replace.
+    protected: Vec<PathBuf>,
     committed: bool,
 }
 
@@ -51,7 +53,14 @@ impl Staging {
             }
         };
         std::fs::create_dir_all(&dir).with_context(|| format!("cannot create staging folder '{}'", dir.display()))?;
-        Ok(Staging { dir, output: output.to_path_buf(), committed: false })
+        let protected = inputs.iter().filter_map(|p| p.canonicalize().ok()).collect();
+        Ok(Staging { dir, output: output.to_path_buf(), protected, committed: false })
+    }
+
+    /// Adds files an input consists of (its external buffers and images):
+    /// `commit` refuses to replace any of them.
+    pub fn protect(&mut self, files: impl IntoIterator<Item = PathBuf>) {
+        self.protected.extend(files.into_iter().filter_map(|p| p.canonicalize().ok()));
     }
 
     /// Where stages write their files.
@@ -64,13 +73,22 @@ impl Staging {
         self.output.join(staged.file_name().unwrap_or_default())
     }
 
-    /// Moves every staged file into the output folder (replacing older ones).
+    /// Moves every staged file into the output folder (replacing older ones),
+    /// after checking that none would replace an input file.
     pub fn commit(mut self) -> Result<()> {
         std::fs::create_dir_all(&self.output)
             .with_context(|| format!("cannot create output folder '{}'", self.output.display()))?;
         let mut entries: Vec<PathBuf> =
             std::fs::read_dir(&self.dir)?.filter_map(|e| e.ok().map(|e| e.path())).collect();
         entries.sort();
+        for staged in &entries {
+            let target = self.final_path(staged);
+            if let Ok(canonical) = target.canonicalize()
+                && self.protected.contains(&canonical)
+            {
+                bail!("the output '{}' would replace a file of an input; choose another -o folder", target.display());
+            }
+        }
         for staged in entries {
             let target = self.final_path(&staged);
             if std::fs::rename(&staged, &target).is_err() {

@@ -153,6 +153,8 @@ fn help_explains_every_option() {
         "--adapter",
         "--quiet",
         "--log-format",
+        "--format",
+        "--keep-uv1",
     ] {
         assert!(help.contains(option), "--help does not mention {option}");
     }

@@ -171,7 +171,7 @@ fn resolve_uri(uri: &str, base: Option<&Path>) -> Result<Vec<u8>> {
 }
 
 /// Decodes `%XX` escapes (URIs in glTF are percent-encoded).
-fn percent_decode(uri: &str) -> Result<String> {
+pub(crate) fn percent_decode(uri: &str) -> Result<String> {
     let bytes = uri.as_bytes();
     let mut out = Vec::with_capacity(bytes.len());
     let mut i = 0;

@@ -1,34 +1,67 @@
-//! Rewrites the input's glTF JSON into the baked output: one GLB buffer
-//! holding everything (input buffers, formerly external images, new data),
-//! TEXCOORD_1 and the baked material on every baked primitive. Every field of
-//! the input that bake does not change is carried through untouched.
+//! The output document under construction: the input's glTF JSON with every
+//! field carried through, one binary buffer holding all input buffers and the
+//! new data, and the images that are not in that buffer yet. It packages as a
+//! `.glb` (images embedded) or as `.gltf` + `.bin` + image files.
 
-use std::collections::HashMap;
-
-use anyhow::{Context, Result, anyhow, bail};
+use anyhow::{Context, Result, anyhow};
 use serde_json::{Value, json};
 
-use crate::asset::{SourceAsset, accessor};
-use crate::scene::Scene;
-use crate::unwrap::{Atlas, UnwrappedMesh};
+use crate::asset::SourceAsset;
 
-const ARRAY_BUFFER: u32 = 34962;
-const ELEMENT_ARRAY_BUFFER: u32 = 34963;
-const FLOAT: u32 = 5126;
-const UNSIGNED_SHORT: u32 = 5123;
-const UNSIGNED_INT: u32 = 5125;
-const LINEAR: u32 = 9729;
-const CLAMP_TO_EDGE: u32 = 33071;
+/// How the output is packaged (`--format`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Format {
+    /// `NAME.glb`: one binary file, every image embedded.
+    #[default]
+    Glb,
+    /// `NAME.gltf` (JSON) + `NAME.bin` + one file per image that is not in the input's buffers.
+    Gltf,
+}
+
+impl std::fmt::Display for Format {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Format::Glb => "glb",
+            Format::Gltf => "gltf",
+        })
+    }
+}
+
+impl std::str::FromStr for Format {
+    type Err = anyhow::Error;
+
+    /// `"glb"` or `"gltf"`, case-insensitive.
+    fn from_str(s: &str) -> Result<Self> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "glb" => Ok(Format::Glb),
+            "gltf" => Ok(Format::Gltf),
+            _ => Err(anyhow!("unknown output format {s:?} (expected \"glb\" or \"gltf\")")),
+        }
+    }
+}
+
+/// An image whose bytes are placed when the document is packaged.
+struct PendingImage {
+    /// Index in `images`.
+    index: usize,
+    bytes: Vec<u8>,
+    mime: String,
+    /// File name part after the output stem, without extension (`.gltf` form only).
+    suffix: String,
+}
 
 /// The output document under construction, with its binary buffer.
 pub struct Document {
     pub json: Value,
     pub bin: Vec<u8>,
+    images: Vec<PendingImage>,
 }
 
 impl Document {
-    /// The input's document with all its buffers merged into one GLB buffer
-    /// and external or data-URI images moved into buffer views.
+    /// The input's document with all its buffers merged into one buffer.
+    /// Images the input keeps in buffer views stay there; images it keeps in
+    /// files or data URIs are read and become pending images (`imageN`).
     pub fn from_source(source: &SourceAsset) -> Result<Document> {
         let mut json = source.json.clone();
         let mut bin = Vec::new();
@@ -47,23 +80,38 @@ impl Document {
                 view["byteOffset"] = json!(starts.get(buffer).copied().unwrap_or(0) + offset);
             }
         }
-        let mut document = Document { json, bin };
-        let image_count = source.document.images().len();
-        for i in 0..image_count {
+        // A lone input buffer's name and extras describe the merged one as well.
+        if let Some([only]) = json.get("buffers").and_then(Value::as_array).map(Vec::as_slice) {
+            let mut kept = only.clone();
+            if let Some(object) = kept.as_object_mut() {
+                object.remove("uri");
+                object.remove("byteLength");
+            }
+            json["buffers"] = json!([kept]);
+        } else {
+            json["buffers"] = json!([{}]);
+        }
+        let mut document = Document { json, bin, images: Vec::new() };
+        for i in 0..source.document.images().len() {
             if document.json["images"][i].get("uri").is_none() {
                 continue;
             }
             let (bytes, mime) = source.image_bytes(i)?;
             let mime = mime.or_else(|| sniff_image_mime(&bytes).map(str::to_string)).ok_or_else(|| {
-                anyhow!("image {i}: unknown format (neither PNG, JPEG, WebP nor KTX2), cannot embed it")
+                anyhow!("image {i}: unknown format (neither PNG, JPEG, WebP nor KTX2), cannot carry it")
             })?;
-            let view = document.push_view(&bytes, None);
-            let image = document.json["images"][i].as_object_mut().unwrap();
-            image.remove("uri");
-            image.insert("bufferView".into(), json!(view));
-            image.insert("mimeType".into(), json!(mime));
+            if let Some(image) = document.json["images"][i].as_object_mut() {
+                image.remove("uri");
+            }
+            document.images.push(PendingImage { index: i, bytes, mime, suffix: format!("image{i}") });
         }
         Ok(document)
+    }
+
+    /// A document around `json` with an empty buffer (unit tests).
+    #[cfg(test)]
+    pub fn for_tests(json: Value) -> Document {
+        Document { json, bin: Vec::new(), images: Vec::new() }
     }
 
     fn array(&mut self, key: &str) -> &mut Vec<Value> {
@@ -73,7 +121,8 @@ impl Document {
         self.json[key].as_array_mut().unwrap()
     }
 
-    fn push(&mut self, key: &str, value: Value) -> usize {
+    /// Appends `value` to the top-level array `key` (created if missing); returns its index.
+    pub fn push(&mut self, key: &str, value: Value) -> usize {
         let array = self.array(key);
         array.push(value);
         array.len() - 1
@@ -90,22 +139,27 @@ impl Document {
         self.push("bufferViews", view)
     }
 
-    fn push_accessor(&mut self, accessor: Value) -> usize {
-        self.push("accessors", accessor)
-    }
-
-    /// Adds a PNG image with a linear, clamped sampler; returns the texture index.
-    pub fn push_png_texture(&mut self, name: &str, png: &[u8]) -> usize {
-        let view = self.push_view(png, None);
-        let image = self.push("images", json!({ "name": name, "bufferView": view, "mimeType": "image/png" }));
+    /// Adds a PNG image with a linear, clamped, unmipmapped sampler and
+    /// returns the texture's index. `suffix` names its file in the `.gltf`
+    /// form (`NAME.<suffix>.png`); `extras` go on the texture.
+    pub fn push_png_texture(&mut self, name: &str, png: Vec<u8>, suffix: &str, extras: Option<Value>) -> usize {
+        const LINEAR: u32 = 9729;
+        const CLAMP_TO_EDGE: u32 = 33071;
+        let image = self.push("images", json!({ "name": name }));
+        self.images.push(PendingImage { index: image, bytes: png, mime: "image/png".into(), suffix: suffix.into() });
         // No mipmaps: minification between charts would bleed across them.
         let sampler = self.push(
             "samplers",
             json!({ "magFilter": LINEAR, "minFilter": LINEAR, "wrapS": CLAMP_TO_EDGE, "wrapT": CLAMP_TO_EDGE }),
         );
-        self.push("textures", json!({ "name": name, "source": image, "sampler": sampler }))
+        let mut texture = json!({ "name": name, "source": image, "sampler": sampler });
+        if let Some(extras) = extras {
+            texture["extras"] = extras;
+        }
+        self.push("textures", texture)
     }
 
+    /// Lists `name` in `extensionsUsed` (never in `extensionsRequired`).
     pub fn use_extension(&mut self, name: &str) {
         let used = self.array("extensionsUsed");
         if !used.iter().any(|v| v == name) {
@@ -113,16 +167,48 @@ impl Document {
         }
     }
 
-    /// The finished `.glb`.
-    pub fn to_glb(mut self) -> Result<Vec<u8>> {
+    /// The finished output as (file name, bytes): `<stem>.glb`, or
+    /// `<stem>.gltf`, `<stem>.bin` and the image files.
+    pub fn into_files(mut self, stem: &str, format: Format) -> Result<Vec<(String, Vec<u8>)>> {
+        let mut files = Vec::new();
+        let images = std::mem::take(&mut self.images);
+        for image in images {
+            let entry = &mut self.json["images"][image.index];
+            match format {
+                Format::Glb => {
+                    let view = self.push_view(&image.bytes, None);
+                    let entry = &mut self.json["images"][image.index];
+                    entry["bufferView"] = json!(view);
+                    entry["mimeType"] = json!(image.mime);
+                }
+                Format::Gltf => {
+                    let file = format!("{stem}.{}.{}", image.suffix, extension_of(&image.mime));
+                    entry["uri"] = json!(uri_escape(&file));
+                    entry["mimeType"] = json!(image.mime);
+                    files.push((file, image.bytes));
+                }
+            }
+        }
         align(&mut self.bin, 4);
-        self.json["buffers"] = json!([{ "byteLength": self.bin.len() }]);
-        let json = serde_json::to_vec(&self.json).context("serializing the glTF JSON")?;
-        Ok(super::glb::encode(&json, &self.bin))
+        self.json["buffers"][0]["byteLength"] = json!(self.bin.len());
+        match format {
+            Format::Glb => {
+                let json = serde_json::to_vec(&self.json).context("serializing the glTF JSON")?;
+                files.insert(0, (format!("{stem}.glb"), super::glb::encode(&json, &self.bin)));
+            }
+            Format::Gltf => {
+                let bin_name = format!("{stem}.bin");
+                self.json["buffers"][0]["uri"] = json!(uri_escape(&bin_name));
+                let json = serde_json::to_vec_pretty(&self.json).context("serializing the glTF JSON")?;
+                files.insert(0, (bin_name, self.bin));
+                files.insert(0, (format!("{stem}.gltf"), json));
+            }
+        }
+        Ok(files)
     }
 }
 
-fn align(bytes: &mut Vec<u8>, to: usize) {
+pub(crate) fn align(bytes: &mut Vec<u8>, to: usize) {
     while !bytes.len().is_multiple_of(to) {
         bytes.push(0);
     }
@@ -142,179 +228,37 @@ fn sniff_image_mime(bytes: &[u8]) -> Option<&'static str> {
     }
 }
 
-/// Component-wise min and max of packed accessor elements, as JSON numbers
-/// of the accessor's component type (the validator checks them exactly).
-fn bounds(accessor: &gltf::Accessor, packed: &[u8]) -> (Vec<Value>, Vec<Value>) {
-    use gltf::accessor::DataType;
-    let width = accessor.dimensions().multiplicity();
-    let size = accessor.data_type().size();
-    let read = |bytes: &[u8]| -> f64 {
-        match accessor.data_type() {
-            DataType::F32 => f32::from_le_bytes(bytes.try_into().unwrap()) as f64,
-            DataType::U8 => bytes[0] as f64,
-            DataType::I8 => bytes[0] as i8 as f64,
-            DataType::U16 => u16::from_le_bytes(bytes.try_into().unwrap()) as f64,
-            DataType::I16 => i16::from_le_bytes(bytes.try_into().unwrap()) as f64,
-            DataType::U32 => u32::from_le_bytes(bytes.try_into().unwrap()) as f64,
-        }
-    };
-    let mut lo = vec![f64::INFINITY; width];
-    let mut hi = vec![f64::NEG_INFINITY; width];
-    for element in packed.chunks_exact(width * size) {
-        for c in 0..width {
-            let v = read(&element[c * size..(c + 1) * size]);
-            lo[c] = lo[c].min(v);
-            hi[c] = hi[c].max(v);
-        }
+fn extension_of(mime: &str) -> &str {
+    match mime {
+        "image/png" => "png",
+        "image/jpeg" => "jpg",
+        "image/webp" => "webp",
+        "image/ktx2" => "ktx2",
+        _ => "bin",
     }
-    let number = |v: f64| {
-        if accessor.data_type() == DataType::F32 { json!(v as f32) } else { json!(v as i64) }
-    };
-    (lo.into_iter().map(number).collect(), hi.into_iter().map(number).collect())
 }
 
-/// Rewrites every baked primitive: attributes gathered through the unwrap's
-/// vertex map, new indices, TEXCOORD_1 and `material_for(original material)`.
-/// A mesh drawn by several nodes is copied so each node gets its own
-/// lightmap region. Returns notices.
-pub fn rewrite_primitives(
-    document: &mut Document,
-    scene: &Scene,
-    atlas: &Atlas,
-    material_for: &mut dyn FnMut(&mut Document, Option<usize>) -> usize,
-) -> Result<Vec<String>> {
-    let mut notices = Vec::new();
-    // Which output mesh each (node) writes into; the first node keeps the original mesh.
-    let mut mesh_of_node: HashMap<usize, usize> = HashMap::new();
-    let mut claimed: HashMap<usize, usize> = HashMap::new();
-    for primitive in &scene.primitives {
-        if mesh_of_node.contains_key(&primitive.node) {
-            continue;
-        }
-        let target = match claimed.get(&primitive.mesh) {
-            None => {
-                claimed.insert(primitive.mesh, primitive.node);
-                primitive.mesh
-            }
-            Some(_) => {
-                let mut copy = document.json["meshes"][primitive.mesh].clone();
-                let name = copy.get("name").and_then(Value::as_str).unwrap_or("mesh").to_string();
-                copy["name"] = json!(format!("{name} (node {})", primitive.node));
-                let index = document.push("meshes", copy);
-                document.json["nodes"][primitive.node]["mesh"] = json!(index);
-                index
-            }
-        };
-        mesh_of_node.insert(primitive.node, target);
-    }
-
-    let source = &scene.source;
-    for (primitive, unwrapped) in scene.primitives.iter().zip(&atlas.meshes) {
-        let mesh_index = mesh_of_node[&primitive.node];
-        let gltf_primitive = source
-            .document
-            .meshes()
-            .nth(primitive.mesh)
-            .and_then(|m| m.primitives().nth(primitive.primitive))
-            .ok_or_else(|| anyhow!("mesh {} primitive {} vanished", primitive.mesh, primitive.primitive))?;
-        let what = format!("mesh {} primitive {}", primitive.mesh, primitive.primitive);
-        let mut attributes = serde_json::Map::new();
-        for (semantic, source_accessor) in gltf_primitive.attributes() {
-            let name = semantic.to_string();
-            if name == "TEXCOORD_1" {
-                notices.push(format!("{what}: its TEXCOORD_1 is replaced by the lightmap UVs"));
-                continue;
-            }
-            let needs_bounds = semantic == gltf::Semantic::Positions;
-            let index = gather_attribute(document, source, &source_accessor, unwrapped, needs_bounds)
-                .with_context(|| format!("{what}, attribute {name}"))?;
-            attributes.insert(name, json!(index));
-        }
-        let uv: Vec<[f32; 2]> = unwrapped.vertices.iter().map(|v| v.uv).collect();
-        let view = document.push_view(bytemuck::cast_slice(&uv), Some(ARRAY_BUFFER));
-        let uv_accessor = document.push_accessor(json!({
-            "bufferView": view, "componentType": FLOAT, "count": uv.len(), "type": "VEC2",
-        }));
-        attributes.insert("TEXCOORD_1".into(), json!(uv_accessor));
-
-        let vertex_count = unwrapped.vertices.len();
-        let indices = if vertex_count < u16::MAX as usize {
-            let short: Vec<u16> = unwrapped.indices.iter().map(|&i| i as u16).collect();
-            let view = document.push_view(bytemuck::cast_slice(&short), Some(ELEMENT_ARRAY_BUFFER));
-            document.push_accessor(json!({
-                "bufferView": view, "componentType": UNSIGNED_SHORT, "count": short.len(), "type": "SCALAR",
-            }))
+/// A file name as a relative URI: everything but RFC 3986's unreserved
+/// characters percent-encoded.
+pub fn uri_escape(name: &str) -> String {
+    let mut out = String::with_capacity(name.len());
+    for byte in name.bytes() {
+        if byte.is_ascii_alphanumeric() || b"-._~".contains(&byte) {
+            out.push(byte as char);
         } else {
-            let view = document.push_view(bytemuck::cast_slice(&unwrapped.indices), Some(ELEMENT_ARRAY_BUFFER));
-            document.push_accessor(json!({
-                "bufferView": view, "componentType": UNSIGNED_INT, "count": unwrapped.indices.len(), "type": "SCALAR",
-            }))
-        };
-        let material = material_for(document, primitive.material);
-        let out = &mut document.json["meshes"][mesh_index]["primitives"][primitive.primitive];
-        if !out.is_object() {
-            bail!("{what}: not found in the output document");
+            out.push_str(&format!("%{byte:02X}"));
         }
-        out["attributes"] = Value::Object(attributes);
-        out["indices"] = json!(indices);
-        out["mode"] = json!(4);
-        out["material"] = json!(material);
     }
-    Ok(notices)
+    out
 }
 
-/// Copies `source_accessor`'s elements in the unwrap's vertex order into a new accessor.
-fn gather_attribute(
-    document: &mut Document,
-    source: &SourceAsset,
-    source_accessor: &gltf::Accessor,
-    unwrapped: &UnwrappedMesh,
-    needs_bounds: bool,
-) -> Result<usize> {
-    let packed = accessor::packed_bytes(source, source_accessor)?;
-    let size = accessor::element_size(source_accessor);
-    let mut gathered = Vec::with_capacity(unwrapped.vertices.len() * size);
-    for v in &unwrapped.vertices {
-        let at = v.xref as usize * size;
-        let element = packed.get(at..at + size).ok_or_else(|| anyhow!("vertex {} is out of range", v.xref))?;
-        gathered.extend_from_slice(element);
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn uris_escape_spaces_and_non_ascii() {
+        assert_eq!(uri_escape("a b.lightmap0.png"), "a%20b.lightmap0.png");
+        assert_eq!(uri_escape("ä#.bin"), "%C3%A4%23.bin");
     }
-    // Vertex attributes need 4-byte aligned strides; pad elements that are not.
-    let stride = size.div_ceil(4) * 4;
-    let bytes = if stride == size {
-        gathered
-    } else {
-        gathered
-            .chunks_exact(size)
-            .flat_map(|e| e.iter().copied().chain(std::iter::repeat_n(0, stride - size)))
-            .collect()
-    };
-    let view = document.push_view(&bytes, Some(ARRAY_BUFFER));
-    if stride != size {
-        document.json["bufferViews"][view]["byteStride"] = json!(stride);
-    }
-    let source_json = &source.json["accessors"][source_accessor.index()];
-    let mut out = json!({
-        "bufferView": view,
-        "componentType": source_json["componentType"],
-        "count": unwrapped.vertices.len(),
-        "type": source_json["type"],
-    });
-    for key in ["normalized", "name", "extras", "extensions"] {
-        if let Some(value) = source_json.get(key) {
-            out[key] = value.clone();
-        }
-    }
-    // The validator checks declared bounds exactly, so recompute them for the gathered set.
-    if needs_bounds || source_json.get("min").is_some() || source_json.get("max").is_some() {
-        let packed_out: Vec<u8> = if stride == size {
-            bytes.clone()
-        } else {
-            bytes.chunks_exact(stride).flat_map(|e| e[..size].to_vec()).collect()
-        };
-        let (lo, hi) = bounds(source_accessor, &packed_out);
-        out["min"] = json!(lo);
-        out["max"] = json!(hi);
-    }
-    Ok(document.push_accessor(out))
 }

@@ -1,6 +1,19 @@
 //! Lightmap images from the solution: the HDR lightmap (L_lm per texel), the
 //! "baked" beauty image (albedo·L_lm + emission) a viewer shows, dilation
-//! into chart padding, and their encodings (EXR, 8-bit sRGB PNG).
+//! into chart padding, and their encodings (EXR, 8-bit sRGB PNG, RGBM PNG).
+//!
+//! RGBM (8-bit RGBA PNG, raw codes, no sRGB transfer), with the atlas-wide
+//! range `R` recorded beside it:
+//!
+//! ```text
+//! L_lm = R · (A / 255) · (RGB / 255)
+//! ```
+//!
+//! `A` is the smallest code with `R·A/255 ≥ max(r, g, b)`, so nothing clips,
+//! and each channel is rounded to the nearest code: a decoded channel is
+//! within half a step, `R·A / (2·255²)`, of the float value, which is at most
+//! `(max(r, g, b) + R/255) / 510`: 8-bit precision relative to the texel's
+//! brightest channel down to R/255, an absolute `R/65025` below that.
 
 use anyhow::{Context, Result};
 
@@ -115,6 +128,56 @@ impl Image {
     }
 }
 
+/// The RGBM range for an image whose brightest channel is `peak`: `peak`
+/// rounded up to 4 significant digits (so the JSON number is short and
+/// exact), 1 for a black or non-finite image.
+pub fn rgbm_range(peak: f32) -> f64 {
+    if !(peak.is_finite() && peak > 0.0) {
+        return 1.0;
+    }
+    let peak = peak as f64;
+    let step = 10f64.powi(peak.log10().floor() as i32 - 3);
+    let range = (peak / step).ceil() * step;
+    // Rounding the decimal may land a hair under `peak`: step up once more.
+    if range < peak { range + step } else { range }
+}
+
+/// One texel as RGBM codes under `range` (module documentation).
+pub fn rgbm_encode(value: [f32; 3], range: f64) -> [u8; 4] {
+    let v = value.map(|c| if c.is_finite() { (c as f64).clamp(0.0, range) } else { 0.0 });
+    let peak = v[0].max(v[1]).max(v[2]);
+    let a = (peak / range * 255.0).ceil().clamp(0.0, 255.0);
+    if a == 0.0 {
+        return [0; 4];
+    }
+    let scale = range * a / 255.0;
+    let code = |c: f64| (c / scale * 255.0).round().clamp(0.0, 255.0) as u8;
+    [code(v[0]), code(v[1]), code(v[2]), a as u8]
+}
+
+/// L_lm from RGBM codes under `range`: `range · (A/255) · (RGB/255)`.
+pub fn rgbm_decode(code: [u8; 4], range: f64) -> [f32; 3] {
+    let scale = range * code[3] as f64 / 255.0;
+    [0, 1, 2].map(|c| (scale * code[c] as f64 / 255.0) as f32)
+}
+
+impl Image {
+    /// The brightest channel of any texel (finite values only).
+    pub fn peak(&self) -> f32 {
+        self.pixels.iter().flatten().copied().filter(|c| c.is_finite()).fold(0.0, f32::max)
+    }
+
+    /// An 8-bit RGBA PNG of the RGBM codes under `range` (see the module documentation).
+    pub fn encode_rgbm_png(&self, range: f64) -> Result<Vec<u8>> {
+        let rgba: Vec<u8> = self.pixels.iter().flat_map(|&p| rgbm_encode(p, range)).collect();
+        let mut bytes = Vec::new();
+        let encoder = image::codecs::png::PngEncoder::new(&mut bytes);
+        image::ImageEncoder::write_image(encoder, &rgba, self.width, self.height, image::ExtendedColorType::Rgba8)
+            .context("encoding the RGBM lightmap")?;
+        Ok(bytes)
+    }
+}
+
 /// Linear [0, 1] to an 8-bit sRGB code (IEC 61966-2-1), rounding to nearest.
 pub fn linear_to_srgb8(linear: f32) -> u8 {
     let v = if linear.is_nan() { 0.0 } else { linear.clamp(0.0, 1.0) };
@@ -147,6 +210,42 @@ mod tests {
         assert_eq!(linear_to_srgb8(4.0), 255);
         assert_eq!(linear_to_srgb8(0.5), 188);
         assert_eq!(linear_to_srgb8(0.002), 7);
+    }
+
+    #[test]
+    fn rgbm_range_rounds_up_to_four_digits() {
+        assert_eq!(rgbm_range(0.0), 1.0);
+        assert_eq!(rgbm_range(f32::NAN), 1.0);
+        assert_eq!(rgbm_range(1.0), 1.0);
+        assert!((rgbm_range(1.23456) - 1.235).abs() < 1e-12);
+        assert!((rgbm_range(12345.6) - 12350.0).abs() < 1e-9);
+        for peak in [1e-3f32, 0.7, 2.5, 99.99, 1e5] {
+            assert!(rgbm_range(peak) >= peak as f64 && rgbm_range(peak) <= peak as f64 * 1.001, "{peak}");
+        }
+    }
+
+    #[test]
+    fn rgbm_round_trips_within_half_a_step() {
+        let range = 8.0;
+        let mut worst_relative: f64 = 0.0;
+        for i in 0..2000 {
+            let t = i as f32 / 1999.0;
+            let value = [8.0 * t * t, 3.0 * t, 0.01 + 0.5 * t * t * t].map(|c: f32| c.min(8.0));
+            let code = rgbm_encode(value, range);
+            let back = rgbm_decode(code, range);
+            let half_step = range * code[3] as f64 / (2.0 * 255.0 * 255.0);
+            let peak = value.iter().copied().fold(0.0f32, f32::max) as f64;
+            for c in 0..3 {
+                let error = (back[c] as f64 - value[c] as f64).abs();
+                assert!(error <= half_step * (1.0 + 1e-6), "{value:?} → {code:?} → {back:?}");
+                if peak > range / 255.0 {
+                    worst_relative = worst_relative.max(error / peak);
+                }
+            }
+        }
+        assert!(worst_relative <= 1.0 / 255.0, "{worst_relative}");
+        assert_eq!(rgbm_encode([0.0; 3], range), [0; 4]);
+        assert_eq!(rgbm_encode([100.0, 0.0, f32::NAN], range), [255, 0, 0, 255]);
     }
 
     #[test]

@@ -1,41 +1,49 @@
-//! Export stage: Scene + Atlas + TexelSet + Solution in, files out:
-//! `<name>.glb` (the input with TEXCOORD_1 and the baked lighting shown by
-//! any viewer) and `<name>.lightmap0.exr` (L_lm per texel in full HDR).
+//! Export stage: a baked scene in, files out (README, "What it writes" and
+//! "Using the lightmap in an engine"):
 //!
-//! What a viewer shows: every baked primitive's default material is
-//! KHR_materials_unlit with the baked atlas (albedo·L_lm + emission, scaled
-//! by 2^exposure, clamped, 8-bit sRGB) as base colour on texCoord 1 — the
-//! form three.js, Babylon.js and model-viewer all display as baked.
+//! - `NAME.glb`, or with [`Format::Gltf`] `NAME.gltf` + `NAME.bin` + image
+//!   files: the input with every field carried through, each baked primitive
+//!   given TEXCOORD_1 and two material forms under KHR_materials_variants
+//!   (`materials.rs`): by default the unlit baked atlas any viewer shows,
+//!   and the input's PBR material with the lightmap as `MOZ_lightmap`
+//!   (RGBM PNG, `lightmap.rs`).
+//! - `NAME.lightmap0.exr`: L_lm per texel in full float HDR.
+//!
+//! The same inputs and options give byte-identical files: nothing here
+//! depends on time, hashing order or threads.
 
 pub mod document;
 pub mod glb;
 pub mod lightmap;
+pub mod materials;
+pub mod primitives;
 
-use std::collections::HashMap;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
-use serde_json::{Value, json};
+use serde_json::json;
 
-use crate::scene::Scene;
-use crate::solve::Solution;
-use crate::texelize::TexelSet;
-use crate::unwrap::Atlas;
+use crate::Baked;
+use crate::asset::SourceAsset;
 use document::Document;
+pub use document::Format;
 
 /// Export options with their defaults.
 #[derive(Clone, Debug)]
 pub struct ExportOptions {
-    /// Exposure in stops applied to the 8-bit preview texture (not to the EXR).
+    /// Exposure in stops applied to the 8-bit preview texture (not to the EXR or the RGBM lightmap).
     pub exposure: f32,
     /// Texels of chart padding filled by dilation.
     pub dilation: u32,
+    /// `.glb` (default) or `.gltf` + `.bin` + images.
+    pub format: Format,
 }
 
 impl Default for ExportOptions {
     fn default() -> Self {
-        ExportOptions { exposure: 0.0, dilation: 4 }
+        ExportOptions { exposure: 0.0, dilation: 4, format: Format::Glb }
     }
 }
 
@@ -47,73 +55,94 @@ pub struct ExportStats {
     pub atlas_height: u32,
     /// Padding texels filled by dilation.
     pub dilated_texels: usize,
+    /// The RGBM lightmap's range R: L_lm = R · (A/255) · (RGB/255).
+    pub rgbm_range: f64,
     pub notices: Vec<String>,
 }
 
-/// Writes the baked scene into `dir` and returns what was written.
-pub fn run(
-    scene: &Scene,
-    atlas: &Atlas,
-    texels: &TexelSet,
-    solution: &Solution,
-    options: &ExportOptions,
-    dir: &Path,
-) -> Result<ExportStats> {
-    let (lightmap, beauty, dilated_texels) = lightmap::images(texels, solution, options.dilation);
-    let exposure = options.exposure.exp2();
-    let png = beauty.encode_png(exposure)?;
+/// Writes the baked scene into `dir` (which must not hold these files yet)
+/// and returns what was written.
+pub fn run(baked: &Baked, options: &ExportOptions, dir: &Path) -> Result<ExportStats> {
+    let (scene, atlas) = (&baked.scene, &baked.atlas);
+    let (lightmap, beauty, dilated_texels) = lightmap::images(&baked.texels, &baked.solution, options.dilation);
+    let exr_name = format!("{}.lightmap0.exr", scene.name);
     let exr = lightmap.encode_exr()?;
+    let beauty_png = beauty.encode_png(options.exposure.exp2())?;
+    let range = lightmap::rgbm_range(lightmap.peak());
+    let rgbm_png = lightmap.encode_rgbm_png(range)?;
 
     let mut document = Document::from_source(&scene.source)?;
-    let texture = document.push_png_texture(&format!("{} baked lighting", scene.name), &png);
-    document.use_extension("KHR_materials_unlit");
-    let mut baked_materials: HashMap<Option<usize>, usize> = HashMap::new();
-    let mut material_for = |doc: &mut Document, original: Option<usize>| -> usize {
-        *baked_materials.entry(original).or_insert_with(|| {
-            let source = original.map(|m| doc.json["materials"][m].clone()).unwrap_or(Value::Null);
-            let name = source.get("name").and_then(Value::as_str).unwrap_or("default");
-            let alpha =
-                source.pointer("/pbrMetallicRoughness/baseColorFactor/3").and_then(Value::as_f64).unwrap_or(1.0);
-            let mut material = json!({
-                "name": format!("{name} (baked)"),
-                "pbrMetallicRoughness": {
-                    "baseColorFactor": [1.0, 1.0, 1.0, alpha],
-                    "baseColorTexture": { "index": texture, "texCoord": 1 },
-                    "metallicFactor": 0.0,
-                    "roughnessFactor": 1.0,
-                },
-                "extensions": { "KHR_materials_unlit": {} },
-            });
-            for key in ["doubleSided", "alphaMode", "alphaCutoff"] {
-                if let Some(value) = source.get(key) {
-                    material[key] = value.clone();
-                }
-            }
-            let materials = doc.json.get_mut("materials").and_then(Value::as_array_mut);
-            match materials {
-                Some(list) => {
-                    list.push(material);
-                    list.len() - 1
-                }
-                None => {
-                    doc.json["materials"] = json!([material]);
-                    0
-                }
-            }
-        })
-    };
-    let notices = document::rewrite_primitives(&mut document, scene, atlas, &mut material_for)?;
-    let glb = document.to_glb()?;
+    let baked_texture = document.push_png_texture(
+        &format!("{} baked lighting", scene.name),
+        beauty_png,
+        "baked0",
+        Some(json!({ "bake": {
+            "content": "albedo * L_lm + emission, times 2^exposure, clamped to [0, 1]",
+            "encoding": "sRGB",
+            "exposure": options.exposure,
+        }})),
+    );
+    let lightmap_texture = document.push_png_texture(
+        &format!("{} lightmap (RGBM)", scene.name),
+        rgbm_png,
+        "lightmap0.rgbm",
+        Some(json!({ "bake": {
+            "content": "L_lm = E/pi, linear RGB",
+            "encoding": "RGBM",
+            "range": range,
+            "decode": "L_lm = range * (A/255) * (RGB/255), from the raw 8-bit codes (no sRGB decoding)",
+            "hdr": exr_name,
+        }})),
+    );
+    let (rewritten, notices) = primitives::rewrite(&mut document, scene, atlas, baked.uv1_reused)?;
+    materials::assign(
+        &mut document,
+        &rewritten,
+        materials::Textures { baked: baked_texture, lightmap: lightmap_texture },
+    );
 
-    let glb_path = dir.join(format!("{}.glb", scene.name));
-    let exr_path = dir.join(format!("{}.lightmap0.exr", scene.name));
-    std::fs::write(&glb_path, glb).with_context(|| format!("writing {}", glb_path.display()))?;
-    std::fs::write(&exr_path, exr).with_context(|| format!("writing {}", exr_path.display()))?;
+    let mut files = Vec::new();
+    for (name, bytes) in document.into_files(&scene.name, options.format)?.into_iter().chain([(exr_name, exr)]) {
+        let path = dir.join(&name);
+        write_new(&path, &bytes)?;
+        files.push(path);
+    }
     Ok(ExportStats {
-        files: vec![glb_path, exr_path],
+        files,
         atlas_width: atlas.width,
         atlas_height: atlas.height,
         dilated_texels,
+        rgbm_range: range,
         notices,
     })
+}
+
+/// Writes a file that must not exist yet: two outputs of one run never share a name.
+fn write_new(path: &Path, bytes: &[u8]) -> Result<()> {
+    let write = || -> std::io::Result<()> {
+        let mut file = std::fs::OpenOptions::new().write(true).create_new(true).open(path)?;
+        file.write_all(bytes)?;
+        file.sync_all()
+    };
+    write().with_context(|| format!("writing {}", path.display()))
+}
+
+/// The files an input consists of: the glTF file itself and every external
+/// buffer and image it names (data URIs aside). No output may replace them.
+pub fn source_files(source: &SourceAsset) -> Vec<PathBuf> {
+    let base = source.path.parent().unwrap_or(Path::new("."));
+    let buffers = source.document.buffers().filter_map(|b| match b.source() {
+        gltf::buffer::Source::Uri(uri) => Some(uri),
+        gltf::buffer::Source::Bin => None,
+    });
+    let images = source.document.images().filter_map(|i| match i.source() {
+        gltf::image::Source::Uri { uri, .. } => Some(uri),
+        gltf::image::Source::View { .. } => None,
+    });
+    let external = buffers
+        .chain(images)
+        .filter(|uri| !uri.starts_with("data:"))
+        .filter_map(|uri| crate::asset::percent_decode(uri).ok())
+        .map(|relative| base.join(relative));
+    std::iter::once(source.path.clone()).chain(external).collect()
 }

@@ -250,7 +250,7 @@ pub(crate) fn rasterize(p: [[f64; 2]; 3], w: usize, h: usize, mut f: impl FnMut(
 
 /// Calls `f(x, y)` for every texel whose centre lies inside the triangle `p` (texel units) by
 /// more than a small margin, so that triangles sharing an edge never both claim a centre.
-fn inside_centres(p: [[f64; 2]; 3], w: usize, h: usize, mut f: impl FnMut(usize, usize)) {
+pub(super) fn inside_centres(p: [[f64; 2]; 3], w: usize, h: usize, mut f: impl FnMut(usize, usize)) {
     const MARGIN: f64 = 1e-3;
     let area2 = (p[1][0] - p[0][0]) * (p[2][1] - p[0][1]) - (p[2][0] - p[0][0]) * (p[1][1] - p[0][1]);
     if area2 == 0.0 || !area2.is_finite() {

@@ -19,13 +19,18 @@
 //! no chart folding over itself, no mirrored triangle, real padding; about 30 ms for 20k
 //! triangles on a 1024² page). Should a backend break these promises on some input, [`run`]
 //! falls back to the other backend and says so in [`Atlas::notices`].
+//!
+//! [`from_existing`] makes the same [`Atlas`] from UVs the input already has (`--keep-uv1`),
+//! when they are inside the page and do not overlap.
 
 mod check;
+mod existing;
 mod uvunwrap;
 mod xatlas;
 pub mod xatlas_ffi;
 
 pub use check::{Quality, inspect};
+pub use existing::{ExistingUvError, from_existing};
 
 use std::fmt;
 use std::str::FromStr;

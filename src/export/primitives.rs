@@ -1,0 +1,268 @@
+//! Rewrites every baked primitive of the output document: its attributes
+//! gathered through the unwrap's vertex map, new indices (a triangle list),
+//! and the lightmap UVs as TEXCOORD_1. Materials are assigned afterwards
+//! (`materials.rs`).
+//!
+//! What is not baked is not touched: a mesh that a non-baked node also draws
+//! (a skinned node, a node of another scene) keeps its primitives and
+//! accessors, and each baked node that draws it gets a copy. A mesh drawn by
+//! several baked nodes is copied too, so that each node gets its own
+//! lightmap region. An input TEXCOORD_1 that the lightmap UVs replace moves
+//! to the first free TEXCOORD_n, so no vertex data is lost.
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use anyhow::{Context, Result, anyhow, bail};
+use serde_json::{Value, json};
+
+use super::document::Document;
+use crate::asset::{SourceAsset, accessor};
+use crate::scene::Scene;
+use crate::unwrap::{Atlas, UnwrappedMesh};
+
+const ARRAY_BUFFER: u32 = 34962;
+const ELEMENT_ARRAY_BUFFER: u32 = 34963;
+const FLOAT: u32 = 5126;
+const UNSIGNED_SHORT: u32 = 5123;
+const UNSIGNED_INT: u32 = 5125;
+
+/// One rewritten primitive of the output document.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Rewritten {
+    /// Output mesh index (the input's, or a copy's) and primitive index within it.
+    pub mesh: usize,
+    pub primitive: usize,
+    /// The input primitive's material; `None` is glTF's default material.
+    pub material: Option<usize>,
+    /// The set the input's TEXCOORD_1 moved to (`n` of TEXCOORD_n), if it moved.
+    pub moved_uv1_to: Option<u32>,
+}
+
+/// Rewrites every primitive of `scene` in `document` with the UVs of `atlas`.
+/// With `uv1_reused`, the atlas' UVs are the input's own TEXCOORD_1 and
+/// nothing is moved aside. Returns the rewritten primitives (in scene order)
+/// and notices.
+pub fn rewrite(
+    document: &mut Document,
+    scene: &Scene,
+    atlas: &Atlas,
+    uv1_reused: bool,
+) -> Result<(Vec<Rewritten>, Vec<String>)> {
+    if atlas.meshes.len() != scene.primitives.len() {
+        bail!("the atlas has {} meshes for {} primitives", atlas.meshes.len(), scene.primitives.len());
+    }
+    let mesh_of_node = output_meshes(document, scene);
+    let source = &scene.source;
+    let mut notices = BTreeSet::new();
+    let mut rewritten = Vec::new();
+    for (primitive, unwrapped) in scene.primitives.iter().zip(&atlas.meshes) {
+        let what = format!("mesh {} primitive {}", primitive.mesh, primitive.primitive);
+        let input = &source.json["meshes"][primitive.mesh]["primitives"][primitive.primitive];
+        let Some(input_attributes) = input.get("attributes").and_then(Value::as_object) else {
+            bail!("{what}: not found in the input document");
+        };
+        let mut attributes = serde_json::Map::new();
+        let mut moved_uv1_to = None;
+        for (name, index) in input_attributes {
+            let source_accessor = index
+                .as_u64()
+                .and_then(|i| source.document.accessors().nth(i as usize))
+                .ok_or_else(|| anyhow!("{what}: attribute {name} names no accessor"))?;
+            let mut target = name.clone();
+            if name == "TEXCOORD_1" {
+                if uv1_reused {
+                    continue; // written below from the atlas, which holds exactly these UVs
+                }
+                let free = (2u32..).find(|n| !input_attributes.contains_key(&format!("TEXCOORD_{n}"))).unwrap();
+                moved_uv1_to = Some(free);
+                target = format!("TEXCOORD_{free}");
+                notices.insert(format!(
+                    "{what}: its TEXCOORD_1 moved to {target} (the lightmap UVs take TEXCOORD_1); \
+                     its material's texture references follow it"
+                ));
+            }
+            let needs_bounds = name == "POSITION";
+            let index = gather_attribute(document, source, &source_accessor, unwrapped, needs_bounds)
+                .with_context(|| format!("{what}, attribute {name}"))?;
+            attributes.insert(target, json!(index));
+        }
+        let uv: Vec<[f32; 2]> = unwrapped.vertices.iter().map(|v| v.uv).collect();
+        let view = document.push_view(bytemuck::cast_slice(&uv), Some(ARRAY_BUFFER));
+        let uv_accessor = document.push(
+            "accessors",
+            json!({
+                "bufferView": view, "componentType": FLOAT, "count": uv.len(), "type": "VEC2",
+            }),
+        );
+        attributes.insert("TEXCOORD_1".into(), json!(uv_accessor));
+        if !attributes.contains_key("TEXCOORD_0") {
+            // glTF numbers texture coordinate sets from 0 without gaps.
+            attributes.insert("TEXCOORD_0".into(), json!(uv_accessor));
+            notices.insert(format!("{what}: had no TEXCOORD_0; the lightmap UVs serve as TEXCOORD_0 too"));
+        }
+        let indices = push_indices(document, unwrapped);
+
+        let mesh = mesh_of_node[&primitive.node];
+        let out = &mut document.json["meshes"][mesh]["primitives"][primitive.primitive];
+        if !out.is_object() {
+            bail!("{what}: not found in the output document");
+        }
+        out["attributes"] = Value::Object(attributes);
+        out["indices"] = json!(indices);
+        out["mode"] = json!(4);
+        if let Some(object) = out.as_object_mut() {
+            object.remove("targets");
+        }
+        rewritten.push(Rewritten { mesh, primitive: primitive.primitive, material: primitive.material, moved_uv1_to });
+    }
+    Ok((rewritten, notices.into_iter().collect()))
+}
+
+/// Which output mesh each baked node draws. A mesh keeps its index for the
+/// first baked node that draws it, unless a node that is not baked draws it
+/// too; every other baked node gets a copy (appended to `meshes`, the node
+/// pointed at it).
+fn output_meshes(document: &mut Document, scene: &Scene) -> BTreeMap<usize, usize> {
+    let baked_nodes: BTreeSet<usize> = scene.primitives.iter().map(|p| p.node).collect();
+    let nodes = document.json.get("nodes").and_then(Value::as_array).cloned().unwrap_or_default();
+    let drawn_by_others: BTreeSet<usize> = nodes
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| !baked_nodes.contains(i))
+        .filter_map(|(_, node)| node.get("mesh").and_then(Value::as_u64).map(|m| m as usize))
+        .collect();
+    let mut mesh_of_node = BTreeMap::new();
+    let mut claimed = BTreeSet::new();
+    for primitive in &scene.primitives {
+        if mesh_of_node.contains_key(&primitive.node) {
+            continue;
+        }
+        let mesh = primitive.mesh;
+        let target = if !drawn_by_others.contains(&mesh) && claimed.insert(mesh) {
+            mesh
+        } else {
+            let mut copy = scene.source.json["meshes"][mesh].clone();
+            let name = copy.get("name").and_then(Value::as_str).map_or_else(|| format!("mesh {mesh}"), str::to_string);
+            let node_name = nodes[primitive.node]
+                .get("name")
+                .and_then(Value::as_str)
+                .map_or_else(|| format!("node {}", primitive.node), |n| format!("node '{n}'"));
+            copy["name"] = json!(format!("{name} ({node_name})"));
+            let index = document.push("meshes", copy);
+            document.json["nodes"][primitive.node]["mesh"] = json!(index);
+            index
+        };
+        mesh_of_node.insert(primitive.node, target);
+    }
+    mesh_of_node
+}
+
+/// The unwrapped triangle list as 16-bit indices where they fit, else 32-bit.
+fn push_indices(document: &mut Document, unwrapped: &UnwrappedMesh) -> usize {
+    // 65535 is the primitive-restart value for 16-bit indices: keep it out.
+    if unwrapped.vertices.len() < u16::MAX as usize {
+        let short: Vec<u16> = unwrapped.indices.iter().map(|&i| i as u16).collect();
+        let view = document.push_view(bytemuck::cast_slice(&short), Some(ELEMENT_ARRAY_BUFFER));
+        document.push(
+            "accessors",
+            json!({
+                "bufferView": view, "componentType": UNSIGNED_SHORT, "count": short.len(), "type": "SCALAR",
+            }),
+        )
+    } else {
+        let view = document.push_view(bytemuck::cast_slice(&unwrapped.indices), Some(ELEMENT_ARRAY_BUFFER));
+        document.push(
+            "accessors",
+            json!({
+                "bufferView": view, "componentType": UNSIGNED_INT, "count": unwrapped.indices.len(), "type": "SCALAR",
+            }),
+        )
+    }
+}
+
+/// Component-wise min and max of packed accessor elements, as JSON numbers
+/// of the accessor's component type (the validator checks them exactly).
+fn bounds(accessor: &gltf::Accessor, packed: &[u8]) -> (Vec<Value>, Vec<Value>) {
+    use gltf::accessor::DataType;
+    let width = accessor.dimensions().multiplicity();
+    let size = accessor.data_type().size();
+    let read = |bytes: &[u8]| -> f64 {
+        match accessor.data_type() {
+            DataType::F32 => f32::from_le_bytes(bytes.try_into().unwrap()) as f64,
+            DataType::U8 => bytes[0] as f64,
+            DataType::I8 => bytes[0] as i8 as f64,
+            DataType::U16 => u16::from_le_bytes(bytes.try_into().unwrap()) as f64,
+            DataType::I16 => i16::from_le_bytes(bytes.try_into().unwrap()) as f64,
+            DataType::U32 => u32::from_le_bytes(bytes.try_into().unwrap()) as f64,
+        }
+    };
+    let mut lo = vec![f64::INFINITY; width];
+    let mut hi = vec![f64::NEG_INFINITY; width];
+    for element in packed.chunks_exact(width * size) {
+        for c in 0..width {
+            let v = read(&element[c * size..(c + 1) * size]);
+            lo[c] = lo[c].min(v);
+            hi[c] = hi[c].max(v);
+        }
+    }
+    let number = |v: f64| {
+        if accessor.data_type() == DataType::F32 { json!(v as f32) } else { json!(v as i64) }
+    };
+    (lo.into_iter().map(number).collect(), hi.into_iter().map(number).collect())
+}
+
+/// Copies `source_accessor`'s elements in the unwrap's vertex order into a new accessor.
+fn gather_attribute(
+    document: &mut Document,
+    source: &SourceAsset,
+    source_accessor: &gltf::Accessor,
+    unwrapped: &UnwrappedMesh,
+    needs_bounds: bool,
+) -> Result<usize> {
+    let packed = accessor::packed_bytes(source, source_accessor)?;
+    let size = accessor::element_size(source_accessor);
+    let mut gathered = Vec::with_capacity(unwrapped.vertices.len() * size);
+    for v in &unwrapped.vertices {
+        let at = v.xref as usize * size;
+        let element = packed.get(at..at + size).ok_or_else(|| anyhow!("vertex {} is out of range", v.xref))?;
+        gathered.extend_from_slice(element);
+    }
+    // Vertex attributes need 4-byte aligned strides; pad elements that are not.
+    let stride = size.div_ceil(4) * 4;
+    let bytes = if stride == size {
+        gathered
+    } else {
+        gathered
+            .chunks_exact(size)
+            .flat_map(|e| e.iter().copied().chain(std::iter::repeat_n(0, stride - size)))
+            .collect()
+    };
+    let view = document.push_view(&bytes, Some(ARRAY_BUFFER));
+    if stride != size {
+        document.json["bufferViews"][view]["byteStride"] = json!(stride);
+    }
+    let source_json = &source.json["accessors"][source_accessor.index()];
+    let mut out = json!({
+        "bufferView": view,
+        "componentType": source_json["componentType"],
+        "count": unwrapped.vertices.len(),
+        "type": source_json["type"],
+    });
+    for key in ["normalized", "name", "extras", "extensions"] {
+        if let Some(value) = source_json.get(key) {
+            out[key] = value.clone();
+        }
+    }
+    // The validator checks declared bounds exactly, so recompute them for the gathered set.
+    if needs_bounds || source_json.get("min").is_some() || source_json.get("max").is_some() {
+        let packed_out: Vec<u8> = if stride == size {
+            bytes.clone()
+        } else {
+            bytes.chunks_exact(stride).flat_map(|e| e[..size].to_vec()).collect()
+        };
+        let (lo, hi) = bounds(source_accessor, &packed_out);
+        out["min"] = json!(lo);
+        out["max"] = json!(hi);
+    }
+    Ok(document.push("accessors", out))
+}

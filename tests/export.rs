@@ -1,0 +1,461 @@
+//! The exported files, read back as an engine or a viewer would: everything
+//! in the input survives (nodes, meshes, materials, animations, cameras,
+//! skins, extras, unknown extensions, names, order); the default material is
+//! the unlit baked one and the input's PBR material is one variant away with
+//! an RGBM lightmap that decodes to the EXR; the `.gltf` form holds the same
+//! scene; `--keep-uv1` bakes into a valid TEXCOORD_1 and otherwise says why
+//! not; no output ever replaces a file of an input.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use bake::asset::{SourceAsset, accessor};
+use bake::report::Report;
+use serde_json::{Value, json};
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures").join(name)
+}
+
+/// Runs a tiny bake of `input` under the sun-and-sky fixture into `out`.
+fn bake(input: &Path, out: &Path, extra: &[&str]) -> Output {
+    let env = fixture("sky_sun.exr");
+    let mut args = vec![input.as_os_str(), "--env".as_ref(), env.as_os_str(), "-o".as_ref(), out.as_os_str()];
+    for arg in ["--max-atlas-size", "64", "--lights", "64", "--max-shots", "64", "-q"].iter().chain(extra) {
+        args.push(arg.as_ref());
+    }
+    Command::new(env!("CARGO_BIN_EXE_bake")).args(&args).output().expect("bake runs")
+}
+
+fn bake_ok(input: &Path, out: &Path, extra: &[&str]) {
+    let output = bake(input, out, extra);
+    assert!(output.status.success(), "bake {}: {}", input.display(), String::from_utf8_lossy(&output.stderr));
+}
+
+fn report(out: &Path) -> Report {
+    serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap()
+}
+
+/// Accessor `index` of `asset` as floats.
+fn floats(asset: &SourceAsset, index: usize) -> Vec<f32> {
+    accessor::read_floats(asset, &asset.document.accessors().nth(index).unwrap()).unwrap()
+}
+
+/// The accessor a primitive's attribute names, if any.
+fn attribute(json: &Value, mesh: usize, primitive: usize, name: &str) -> Option<usize> {
+    json["meshes"][mesh]["primitives"][primitive]["attributes"][name].as_u64().map(|i| i as usize)
+}
+
+/// Triangles of a primitive in UV set `set` (its indices, or none for a non-indexed one).
+fn uv_triangles(asset: &SourceAsset, mesh: usize, primitive: usize, set: &str) -> Vec<[[f32; 2]; 3]> {
+    let uv = floats(asset, attribute(&asset.json, mesh, primitive, set).unwrap());
+    let indices = asset.json["meshes"][mesh]["primitives"][primitive]["indices"].as_u64().unwrap() as usize;
+    let indices = accessor::read_indices(asset, &asset.document.accessors().nth(indices).unwrap()).unwrap();
+    indices.chunks_exact(3).map(|t| [0, 1, 2].map(|k| [uv[2 * t[k] as usize], uv[2 * t[k] as usize + 1]])).collect()
+}
+
+/// Whether two UV triangles overlap with positive area (separating axis test).
+fn overlap(a: [[f32; 2]; 3], b: [[f32; 2]; 3]) -> bool {
+    const EPS: f32 = 1e-6;
+    for tri in [a, b] {
+        for k in 0..3 {
+            let (p, q) = (tri[k], tri[(k + 1) % 3]);
+            let axis = [p[1] - q[1], q[0] - p[0]];
+            let project = |t: [[f32; 2]; 3]| {
+                let d = t.map(|v| v[0] * axis[0] + v[1] * axis[1]);
+                (d[0].min(d[1]).min(d[2]), d[0].max(d[1]).max(d[2]))
+            };
+            let ((a0, a1), (b0, b1)) = (project(a), project(b));
+            if a1 <= b0 + EPS || b1 <= a0 + EPS {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+/// The input's JSON object with `key` removed (for "equal except for what bake adds").
+fn without(value: &Value, pointer: &str, key: &str) -> Value {
+    let mut value = value.clone();
+    if let Some(object) = value.pointer_mut(pointer).and_then(Value::as_object_mut) {
+        object.remove(key);
+        if object.is_empty() && !pointer.is_empty() {
+            let (parent, child) = pointer.rsplit_once('/').unwrap();
+            value
+                .pointer_mut(if parent.is_empty() { "" } else { parent })
+                .unwrap()
+                .as_object_mut()
+                .unwrap()
+                .remove(child);
+        }
+    }
+    value
+}
+
+#[test]
+fn everything_in_the_input_survives() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture("everything.glb");
+    bake_ok(&input, dir.path(), &[]);
+    let before = SourceAsset::load(&input).unwrap();
+    let after = SourceAsset::load(&dir.path().join("everything.glb")).unwrap();
+    let (a, b) = (&before.json, &after.json);
+    let count = |json: &Value, key: &str| json[key].as_array().map_or(0, Vec::len);
+
+    // The root: asset, extras, extensions, extensions used and required.
+    assert_eq!(b["asset"], a["asset"]);
+    assert_eq!(b["extras"], a["extras"]);
+    assert_eq!(b["extensions"]["ACME_marker"], a["extensions"]["ACME_marker"]);
+    assert_eq!(b["scene"], a["scene"]);
+    assert_eq!(b["scenes"], a["scenes"]);
+    let used: Vec<&Value> = b["extensionsUsed"].as_array().unwrap().iter().collect();
+    for name in a["extensionsUsed"].as_array().unwrap() {
+        assert!(used.contains(&name), "{name} is no longer in extensionsUsed");
+    }
+    for name in ["KHR_materials_unlit", "KHR_materials_variants", "MOZ_lightmap"] {
+        assert!(used.contains(&&json!(name)), "{name} is not in extensionsUsed");
+    }
+    assert_eq!(b.get("extensionsRequired"), a.get("extensionsRequired"), "bake requires nothing new");
+
+    // Nodes: same count and order, every field kept; a baked node may point at a copy of its mesh.
+    assert_eq!(count(b, "nodes"), count(a, "nodes"));
+    let input_meshes = count(a, "meshes");
+    for (i, (x, y)) in a["nodes"].as_array().unwrap().iter().zip(b["nodes"].as_array().unwrap()).enumerate() {
+        assert_eq!(without(y, "", "mesh"), without(x, "", "mesh"), "node {i}");
+        if let Some(mesh) = x["mesh"].as_u64() {
+            let out = y["mesh"].as_u64().unwrap();
+            assert!(out == mesh || out as usize >= input_meshes, "node {i} draws mesh {out}");
+            assert!(
+                b["meshes"][out as usize]["name"]
+                    .as_str()
+                    .unwrap()
+                    .starts_with(a["meshes"][mesh as usize]["name"].as_str().unwrap())
+            );
+        }
+    }
+    // Meshes: every input mesh at its index with its name and extras; what is not baked is untouched.
+    for (m, mesh) in a["meshes"].as_array().unwrap().iter().enumerate() {
+        assert_eq!(b["meshes"][m]["name"], mesh["name"]);
+        assert_eq!(b["meshes"][m]["extras"], mesh["extras"]);
+    }
+    assert_eq!(b["meshes"][2], a["meshes"][2], "the skinned node's mesh is untouched");
+    assert_eq!(b["nodes"][4]["mesh"], 2);
+    assert_eq!(b["meshes"][0]["primitives"][1], a["meshes"][0]["primitives"][1], "the points primitive is untouched");
+    // Materials keep their indices; one only gains MOZ_lightmap, in place.
+    for (m, material) in a["materials"].as_array().unwrap().iter().enumerate() {
+        assert_eq!(without(&b["materials"][m], "/extensions", "MOZ_lightmap"), *material, "material {m}");
+    }
+    assert_eq!(b["materials"][1], a["materials"][1], "material 1 is drawn by the skinned mesh too: untouched");
+    // Animations, cameras, skins, samplers and textures (the input's, at their indices).
+    for key in ["animations", "cameras", "skins"] {
+        assert_eq!(b[key], a[key], "{key}");
+    }
+    assert_eq!(b["samplers"][0], a["samplers"][0]);
+    for (t, texture) in a["textures"].as_array().unwrap().iter().enumerate() {
+        assert_eq!(b["textures"][t], *texture);
+        assert_eq!(b["images"][t]["name"], a["images"][t]["name"]);
+    }
+    // The data behind animations, skins and untouched primitives, accessor for accessor.
+    for index in 0..count(a, "accessors") {
+        assert_eq!(b["accessors"][index], a["accessors"][index], "accessor {index}");
+        assert_eq!(floats(&after, index), floats(&before, index), "accessor {index} data");
+    }
+    // The data-URI image is embedded, byte for byte.
+    assert_eq!(after.image_bytes(1).unwrap().0, before.image_bytes(1).unwrap().0);
+
+    // Baked primitives: TEXCOORD_1 is the lightmap; the input's TEXCOORD_1 moved to TEXCOORD_2 with
+    // every other attribute kept, and the material's occlusion map follows it.
+    let ground: Vec<&String> = b["meshes"][0]["primitives"][0]["attributes"].as_object().unwrap().keys().collect();
+    assert_eq!(ground, ["COLOR_0", "NORMAL", "POSITION", "TANGENT", "TEXCOORD_0", "TEXCOORD_1", "TEXCOORD_2"]);
+    let skinned_copy = b["nodes"][3]["mesh"].as_u64().unwrap() as usize;
+    for name in ["JOINTS_0", "WEIGHTS_0", "TEXCOORD_2"] {
+        assert!(attribute(b, skinned_copy, 0, name).is_some(), "the static flag lost {name}");
+    }
+    let vertices = |asset: &SourceAsset, mesh: usize, uv1: &str| -> Vec<Vec<u32>> {
+        let names = ["POSITION", "TEXCOORD_0", uv1];
+        let data: Vec<Vec<f32>> =
+            names.iter().map(|n| floats(asset, attribute(&asset.json, mesh, 0, n).unwrap())).collect();
+        (0..data[0].len() / 3)
+            .map(|v| [&data[0][3 * v..3 * v + 3], &data[1][2 * v..2 * v + 2], &data[2][2 * v..2 * v + 2]].concat())
+            .map(|v| v.iter().map(|c| c.to_bits()).collect())
+            .collect()
+    };
+    let original: std::collections::BTreeSet<Vec<u32>> = vertices(&before, 1, "TEXCOORD_1").into_iter().collect();
+    for vertex in vertices(&after, 1, "TEXCOORD_2") {
+        assert!(original.contains(&vertex), "crate vertex {vertex:?} is not an input vertex");
+    }
+    let mappings =
+        |mesh: usize| b["meshes"][mesh]["primitives"][0]["extensions"]["KHR_materials_variants"]["mappings"].clone();
+    let crate_pbr = mappings(1)[1]["material"].as_u64().unwrap() as usize;
+    assert_eq!(b["materials"][crate_pbr]["occlusionTexture"]["texCoord"], 2);
+    assert_eq!(b["materials"][crate_pbr]["extensions"]["ACME_marker"], a["materials"][1]["extensions"]["ACME_marker"]);
+
+    // Viewer form by default, engine form one variant away.
+    let variants = b["extensions"]["KHR_materials_variants"]["variants"].clone();
+    assert_eq!(variants, json!([{ "name": "baked" }, { "name": "pbr+lightmap" }]));
+    let mut baked = 0;
+    for (m, mesh) in b["meshes"].as_array().unwrap().iter().enumerate() {
+        for (p, primitive) in mesh["primitives"].as_array().unwrap().iter().enumerate() {
+            let Some(mappings) = primitive.pointer("/extensions/KHR_materials_variants/mappings") else { continue };
+            baked += 1;
+            let default = &b["materials"][primitive["material"].as_u64().unwrap() as usize];
+            assert!(default["extensions"].get("KHR_materials_unlit").is_some(), "mesh {m} primitive {p}");
+            assert_eq!(default["pbrMetallicRoughness"]["baseColorTexture"]["texCoord"], 1);
+            assert_eq!(mappings[0], json!({ "material": primitive["material"], "variants": [0] }));
+            let pbr = &b["materials"][mappings[1]["material"].as_u64().unwrap() as usize];
+            assert_eq!(mappings[1]["variants"], json!([1]));
+            assert_eq!(pbr["extensions"]["MOZ_lightmap"]["texCoord"], 1);
+            assert!(pbr["extensions"].get("KHR_materials_unlit").is_none());
+        }
+    }
+    assert_eq!(baked, 5, "ground, two crates, the static flag and the orb");
+
+    // The two crates have lightmap regions of their own.
+    let (crate_a, crate_b) =
+        (b["nodes"][1]["mesh"].as_u64().unwrap() as usize, b["nodes"][2]["mesh"].as_u64().unwrap() as usize);
+    assert_ne!(crate_a, crate_b);
+    let (ta, tb) = (uv_triangles(&after, crate_a, 0, "TEXCOORD_1"), uv_triangles(&after, crate_b, 0, "TEXCOORD_1"));
+    let overlapping = ta.iter().flat_map(|x| tb.iter().map(move |y| (x, y))).filter(|(x, y)| overlap(**x, **y)).count();
+    eprintln!(
+        "{} nodes, {} → {} meshes, {} → {} materials, {} → {} accessors; crates: {} and {} triangles, {overlapping} overlapping",
+        count(b, "nodes"),
+        input_meshes,
+        count(b, "meshes"),
+        count(a, "materials"),
+        count(b, "materials"),
+        count(a, "accessors"),
+        count(b, "accessors"),
+        ta.len(),
+        tb.len()
+    );
+    assert_eq!(overlapping, 0);
+}
+
+/// The PNG chunk types of `png`, in order.
+fn png_chunks(png: &[u8]) -> Vec<String> {
+    let mut chunks = Vec::new();
+    let mut at = 8;
+    while at + 8 <= png.len() {
+        let length = u32::from_be_bytes(png[at..at + 4].try_into().unwrap()) as usize;
+        chunks.push(String::from_utf8_lossy(&png[at + 4..at + 8]).into_owned());
+        at += 12 + length;
+    }
+    chunks
+}
+
+#[test]
+fn the_rgbm_lightmap_decodes_to_the_exr() {
+    let dir = tempfile::tempdir().unwrap();
+    // Under the sun, L_lm reaches far above 1.
+    bake_ok(&fixture("sphere_on_ground.glb"), dir.path(), &[]);
+    let asset = SourceAsset::load(&dir.path().join("sphere_on_ground.glb")).unwrap();
+    let json = &asset.json;
+    let lightmaps: Vec<&Value> =
+        json["materials"].as_array().unwrap().iter().filter_map(|m| m.pointer("/extensions/MOZ_lightmap")).collect();
+    assert_eq!(lightmaps.len(), 2, "both input materials carry the lightmap");
+    assert!(lightmaps.iter().all(|l| *l == lightmaps[0]));
+    assert_eq!(lightmaps[0]["texCoord"], 1);
+    assert_eq!(lightmaps[0]["intensity"], 1.0);
+    let texture = &json["textures"][lightmaps[0]["index"].as_u64().unwrap() as usize];
+    let decode = &texture["extras"]["bake"];
+    assert_eq!(decode["encoding"], "RGBM");
+    assert_eq!(decode["hdr"], "sphere_on_ground.lightmap0.exr");
+    let range = decode["range"].as_f64().unwrap();
+    let (png, mime) = asset.image_bytes(texture["source"].as_u64().unwrap() as usize).unwrap();
+    assert_eq!(mime.as_deref(), Some("image/png"));
+    let chunks = png_chunks(&png);
+    assert!(
+        !chunks.iter().any(|c| c == "sRGB" || c == "gAMA" || c == "iCCP"),
+        "raw codes, no colour space: {chunks:?}"
+    );
+    let rgbm = image::load_from_memory(&png).unwrap();
+    assert_eq!(rgbm.color(), image::ColorType::Rgba8);
+    let rgbm = rgbm.to_rgba8();
+
+    let (width, height) = (rgbm.width() as usize, rgbm.height() as usize);
+    let exr = exr::prelude::read_first_rgba_layer_from_file(
+        dir.path().join("sphere_on_ground.lightmap0.exr"),
+        |size, _| (size.width(), vec![[0f32; 3]; size.width() * size.height()]),
+        |(w, pixels), position, (r, g, b, _a): (f32, f32, f32, f32)| {
+            pixels[position.y() * *w + position.x()] = [r, g, b]
+        },
+    )
+    .unwrap();
+    let hdr = &exr.layer_data.channel_data.pixels.1;
+    assert_eq!(hdr.len(), width * height);
+
+    let peak = hdr.iter().flatten().copied().fold(0.0f32, f32::max) as f64;
+    assert!(peak > 1.0, "the sun makes L_lm exceed 1 ({peak})");
+    assert!(range >= peak && range <= peak * 1.001, "range {range} for a peak of {peak}");
+    let (mut worst_steps, mut worst_relative, mut lit) = (0.0f64, 0.0f64, 0);
+    for (i, (pixel, value)) in rgbm.pixels().zip(hdr).enumerate() {
+        // The README's formula, verbatim: L_lm = range · (A/255) · (RGB/255).
+        let a = pixel[3] as f64 / 255.0;
+        let decoded = [0, 1, 2].map(|c| range * a * (pixel[c] as f64 / 255.0));
+        let half_step = range * a / 255.0 / 2.0;
+        let brightest = value.iter().copied().fold(0.0f32, f32::max) as f64;
+        for c in 0..3 {
+            let error = (decoded[c] - value[c] as f64).abs();
+            assert!(
+                error <= half_step * (1.0 + 1e-6) + 1e-9,
+                "texel {i}: {value:?} decodes to {decoded:?} ({pixel:?}), off by {error} > {half_step}"
+            );
+            if half_step > 0.0 {
+                worst_steps = worst_steps.max(error / (2.0 * half_step));
+            }
+            if brightest > range / 255.0 {
+                worst_relative = worst_relative.max(error / brightest);
+            }
+        }
+        lit += usize::from(brightest > 0.0);
+    }
+    eprintln!(
+        "{width}×{height} RGBM lightmap, range {range} (peak L_lm {peak:.4}), {lit} non-black texels: \
+         worst error {worst_steps:.3} of a code step, {worst_relative:.5} of the texel's brightest channel"
+    );
+    assert!(worst_relative <= 1.0 / 255.0);
+}
+
+/// Every file in `dir` but report.json, by name.
+fn files(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.file_name().unwrap() != "report.json")
+        .map(|p| (p.file_name().unwrap().to_string_lossy().into_owned(), std::fs::read(&p).unwrap()))
+        .collect()
+}
+
+#[test]
+fn the_gltf_form_holds_the_same_scene_in_separate_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let (glb_dir, gltf_dir) = (dir.path().join("glb"), dir.path().join("gltf"));
+    bake_ok(&fixture("everything.glb"), &glb_dir, &[]);
+    bake_ok(&fixture("everything.glb"), &gltf_dir, &["--format", "gltf"]);
+    let written = files(&gltf_dir);
+    let names: Vec<&str> = written.keys().map(String::as_str).collect();
+    assert_eq!(
+        names,
+        [
+            "everything.baked0.png",
+            "everything.bin",
+            "everything.gltf",
+            "everything.image1.png",
+            "everything.lightmap0.exr",
+            "everything.lightmap0.rgbm.png",
+        ]
+    );
+    let outputs: Vec<String> = report(&gltf_dir).scenes[0]
+        .outputs
+        .iter()
+        .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(outputs.len(), 6, "{outputs:?}");
+
+    // Everything resolves through its URI, as a loader reads it.
+    let (document, buffers, images) = gltf::import(gltf_dir.join("everything.gltf")).expect("the .gltf loads");
+    assert_eq!((buffers.len(), images.len()), (1, 4));
+    assert_eq!(document.images().filter(|i| matches!(i.source(), gltf::image::Source::Uri { .. })).count(), 3);
+
+    // The same scene as the .glb: the same JSON but for where images live, and the same
+    // binary data, the .glb's images appended after it.
+    let glb = SourceAsset::load(&glb_dir.join("everything.glb")).unwrap();
+    let gltf = SourceAsset::load(&gltf_dir.join("everything.gltf")).unwrap();
+    for key in ["nodes", "meshes", "materials", "accessors", "textures", "animations", "skins", "extensions"] {
+        assert_eq!(gltf.json[key], glb.json[key], "{key}");
+    }
+    let bin = &written["everything.bin"];
+    assert_eq!(&glb.buffers[0][..bin.len()], &bin[..]);
+    assert_eq!(written["everything.image1.png"], glb.image_bytes(1).unwrap().0);
+    assert_eq!(written["everything.lightmap0.exr"], std::fs::read(glb_dir.join("everything.lightmap0.exr")).unwrap());
+}
+
+#[test]
+fn keep_uv1_bakes_into_a_valid_uv_set() {
+    let dir = tempfile::tempdir().unwrap();
+    // A baked file has a valid TEXCOORD_1 on every primitive: bake it again into it.
+    bake_ok(&fixture("sphere_on_ground.glb"), &dir.path().join("first"), &[]);
+    let input = dir.path().join("rebake.glb");
+    std::fs::copy(dir.path().join("first/sphere_on_ground.glb"), &input).unwrap();
+    bake_ok(&input, &dir.path().join("second"), &["--keep-uv1"]);
+    let scene = &report(&dir.path().join("second")).scenes[0];
+    assert_eq!(scene.atlas.unwrapper, "input TEXCOORD_1");
+    assert!(!scene.notices.iter().any(|n| n.contains("TEXCOORD")), "{:?}", scene.notices);
+    let before = SourceAsset::load(&input).unwrap();
+    let after = SourceAsset::load(&dir.path().join("second/rebake.glb")).unwrap();
+    for mesh in 0..2 {
+        let uv = |asset: &SourceAsset| floats(asset, attribute(&asset.json, mesh, 0, "TEXCOORD_1").unwrap());
+        assert_eq!(uv(&after), uv(&before), "mesh {mesh}: the lightmap lies in the input's TEXCOORD_1");
+        assert!(attribute(&after.json, mesh, 0, "TEXCOORD_2").is_none(), "nothing moved aside");
+        // Baking a baked file again keeps one pair of variants, the input's PBR material in the second.
+        let mappings = &after.json["meshes"][mesh]["primitives"][0]["extensions"]["KHR_materials_variants"]["mappings"];
+        assert_eq!(mappings.as_array().unwrap().len(), 2, "{mappings}");
+        let pbr = &after.json["materials"][mappings[1]["material"].as_u64().unwrap() as usize];
+        assert_eq!(pbr["name"], ["ground", "sphere"][mesh]);
+        assert!(pbr["extensions"].get("KHR_materials_unlit").is_none());
+    }
+    assert_eq!(
+        after.json["extensions"]["KHR_materials_variants"]["variants"],
+        json!([{ "name": "baked" }, { "name": "pbr+lightmap" }])
+    );
+    eprintln!("kept: {:?}", scene.atlas);
+}
+
+#[test]
+fn keep_uv1_falls_back_with_a_notice_naming_the_primitive_and_the_check() {
+    let dir = tempfile::tempdir().unwrap();
+    // The orb of `everything` has no TEXCOORD_1.
+    bake_ok(&fixture("everything.glb"), &dir.path().join("missing"), &["--keep-uv1"]);
+    let scene = &report(&dir.path().join("missing")).scenes[0];
+    assert_ne!(scene.atlas.unwrapper, "input TEXCOORD_1");
+    let notice = scene.notices.iter().find(|n| n.starts_with("--keep-uv1")).expect("a notice");
+    assert!(notice.contains("mesh 3 primitive 0 on node 7 has no TEXCOORD_1"), "{notice}");
+
+    // Two nodes drawing one mesh share its TEXCOORD_1: their lightmaps would overlap.
+    bake_ok(&fixture("sphere_on_ground.glb"), &dir.path().join("first"), &[]);
+    let glb = std::fs::read(dir.path().join("first/sphere_on_ground.glb")).unwrap();
+    let parsed = gltf::binary::Glb::from_slice(&glb).unwrap();
+    let mut json: Value = serde_json::from_slice(&parsed.json).unwrap();
+    json["nodes"][1]["mesh"] = json!(0);
+    let input = dir.path().join("twice.glb");
+    std::fs::write(&input, bake::export::glb::encode(&serde_json::to_vec(&json).unwrap(), &parsed.bin.unwrap()))
+        .unwrap();
+    bake_ok(&input, &dir.path().join("overlap"), &["--keep-uv1"]);
+    let scene = &report(&dir.path().join("overlap")).scenes[0];
+    let notice = scene.notices.iter().find(|n| n.starts_with("--keep-uv1")).expect("a notice");
+    assert!(
+        notice.contains("mesh 0 primitive 0 on node 0 overlaps mesh 0 primitive 0 on node 1 in UV space"),
+        "{notice}"
+    );
+    eprintln!("{notice}");
+}
+
+#[test]
+fn outputs_never_replace_a_file_of_an_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let folder = dir.path().join("scene");
+    bake_ok(&fixture("everything.glb"), &folder, &["--format", "gltf"]);
+    let input = folder.join("everything.gltf");
+    let before = files(&folder);
+
+    // A .gltf output into the input's own folder would replace the input and its .bin.
+    let output = bake(&input, &folder, &["--format", "gltf"]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("would replace a file of an input"), "{stderr}");
+    assert_eq!(files(&folder), before, "nothing in the folder changed");
+    assert!(
+        !std::fs::read_dir(&folder).unwrap().any(|e| e.unwrap().file_name().to_string_lossy().starts_with(".bake"))
+    );
+
+    // A .glb output beside it replaces none of its files.
+    bake_ok(&input, &folder, &[]);
+    let after = files(&folder);
+    for (name, bytes) in &before {
+        if name != "everything.lightmap0.exr" {
+            assert_eq!(&after[name], bytes, "{name} changed");
+        }
+    }
+    assert!(after.contains_key("everything.glb"));
+}
