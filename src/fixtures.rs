@@ -45,6 +45,32 @@ impl MeshData {
         mesh
     }
 
+    /// A torus around the Y axis (ring radius `major`, tube radius `minor`),
+    /// counter-clockwise seen from outside; its UV0 seams duplicate vertices.
+    pub fn torus(major: f32, minor: f32, segments: u32, sides: u32) -> MeshData {
+        let mut mesh = MeshData::default();
+        for i in 0..=segments {
+            let phi = i as f32 / segments as f32 * std::f32::consts::TAU;
+            let ring = Vec3::new(phi.cos(), 0.0, -phi.sin());
+            for j in 0..=sides {
+                let theta = j as f32 / sides as f32 * std::f32::consts::TAU;
+                let n = ring * theta.cos() + Vec3::Y * theta.sin();
+                mesh.positions.push((ring * major + n * minor).to_array());
+                mesh.normals.push(n.to_array());
+                mesh.uv0.push([i as f32 / segments as f32, j as f32 / sides as f32]);
+            }
+        }
+        let row = sides + 1;
+        for i in 0..segments {
+            for j in 0..sides {
+                let a = i * row + j;
+                let b = a + row;
+                mesh.indices.extend_from_slice(&[a, b, a + 1, a + 1, b, b + 1]);
+            }
+        }
+        mesh
+    }
+
     /// A flat `width`×`depth` rectangle in the XZ plane facing +Y, centred on
     /// the origin, split into `cells`×`cells` quads.
     pub fn plane(width: f32, depth: f32, cells: u32) -> MeshData {
@@ -345,6 +371,7 @@ pub fn files() -> anyhow::Result<Vec<(String, Vec<u8>)>> {
         ("sphere_on_ground.glb".to_string(), sphere_on_ground().to_glb()),
         ("sphere.glb".to_string(), lone_sphere().to_glb()),
         ("everything.glb".to_string(), everything()),
+        ("corner.glb".to_string(), corner().to_glb()),
     ];
     let maps = [
         ("sky_constant", EnvironmentMap::constant([1.0; 3])),
@@ -366,6 +393,47 @@ pub fn files() -> anyhow::Result<Vec<(String, Vec<u8>)>> {
 }
 
 /// A white-ish sphere of radius 1 floating 0.5 m above a 10×10 m ground.
+/// A floor in the corner of a red and a green wall, with a white sphere, a
+/// box and a torus: colour bleeding, contact shadows, seams on curved
+/// charts. The README's picture.
+pub fn corner() -> SceneBuilder {
+    use std::f32::consts::FRAC_PI_2;
+    let mut scene = SceneBuilder::new();
+    let grey = [0.75, 0.75, 0.75, 1.0];
+    scene.object("floor", &MeshData::plane(6.0, 6.0, 6), grey, [0.0; 3], Placement::default());
+    scene.object(
+        "red wall",
+        &MeshData::plane(6.0, 3.0, 6),
+        [0.8, 0.15, 0.1, 1.0],
+        [0.0; 3],
+        Placement::at(Vec3::new(-3.0, 1.5, 0.0))
+            .rotated(Quat::from_rotation_z(-FRAC_PI_2) * Quat::from_rotation_y(FRAC_PI_2)),
+    );
+    scene.object(
+        "green wall",
+        &MeshData::plane(6.0, 3.0, 6),
+        [0.15, 0.7, 0.15, 1.0],
+        [0.0; 3],
+        Placement::at(Vec3::new(0.0, 1.5, -3.0)).rotated(Quat::from_rotation_x(FRAC_PI_2)),
+    );
+    scene.object("sphere", &MeshData::sphere(0.7, 48, 24), grey, [0.0; 3], Placement::at(Vec3::new(-1.6, 0.7, -1.4)));
+    scene.object(
+        "box",
+        &MeshData::cuboid([1.0, 1.4, 1.0]),
+        [0.9, 0.9, 0.9, 1.0],
+        [0.0; 3],
+        Placement::at(Vec3::new(0.6, 0.7, -1.8)).rotated(Quat::from_rotation_y(0.4)),
+    );
+    scene.object(
+        "torus",
+        &MeshData::torus(0.6, 0.22, 48, 24),
+        [0.9, 0.75, 0.3, 1.0],
+        [0.0; 3],
+        Placement::at(Vec3::new(0.4, 0.22, 0.9)),
+    );
+    scene
+}
+
 pub fn sphere_on_ground() -> SceneBuilder {
     let mut scene = SceneBuilder::new();
     scene.object("ground", &MeshData::plane(10.0, 10.0, 4), [0.8, 0.8, 0.8, 1.0], [0.0; 3], Placement::default());

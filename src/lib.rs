@@ -379,6 +379,26 @@ fn scene_report(
             covered: baked.texels.texels.len(),
             area: baked.texels.total_area(),
             dilated: exported.dilated_texels,
+            fixups: vec![
+                report::Fixup {
+                    stage: "border".into(),
+                    texels: baked.texels.texels.iter().filter(|t| t.area == 0.0).count(),
+                    what: "texels a chart only borders: placed on the nearest point inside their triangle, \
+                           off the chart's edge, so they see neither through nor under what meets it"
+                        .into(),
+                },
+                report::Fixup {
+                    stage: "dilation".into(),
+                    texels: exported.dilated_texels,
+                    what: "padding texels filled from their own chart, so bilinear filtering reads no black".into(),
+                },
+                report::Fixup {
+                    stage: "stitch".into(),
+                    texels: exported.stitch.texels,
+                    what: "texels moved by least squares so the two sides of every UV seam agree".into(),
+                },
+            ],
+            seams: exported.stitch.clone(),
         },
         direct: baked.solution.direct.clone(),
         bounce: baked.solution.bounce.clone(),

@@ -354,6 +354,21 @@ pub struct TexelReport {
     pub area: f64,
     /// Padding texels filled by dilation.
     pub dilated: usize,
+    /// The texel fix-ups in the order they ran, each with the texels it touched
+    /// (absent from reports older than the fix-up list).
+    #[serde(default)]
+    pub fixups: Vec<Fixup>,
+    /// The UV seams and how far apart their two sides were before and after stitching.
+    #[serde(default)]
+    pub seams: crate::export::seams::StitchStats,
+}
+
+/// One texel fix-up stage and how many texels it touched.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Fixup {
+    pub stage: String,
+    pub texels: usize,
+    pub what: String,
 }
 
 /// Energy statistics of one baked primitive's texels.

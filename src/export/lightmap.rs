@@ -17,22 +17,29 @@
 
 use anyhow::{Context, Result};
 
+use super::seams::{self, SeamEdge, StitchStats};
 use crate::solve::Solution;
 use crate::texelize::TexelSet;
 
-/// An RGB f32 image, row-major, with a per-texel "written" mask.
+/// An RGB f32 image, row-major, with a per-texel "written" mask and the
+/// chart each written texel belongs to.
 #[derive(Clone, Debug)]
 pub struct Image {
     pub width: u32,
     pub height: u32,
     pub pixels: Vec<[f32; 3]>,
     pub written: Vec<bool>,
+    /// Chart id of each written texel (`NO_CHART` elsewhere).
+    pub chart: Vec<u32>,
 }
 
+/// `Image::chart` of a texel no chart wrote.
+pub const NO_CHART: u32 = u32::MAX;
+
 impl Image {
-    fn blank(width: u32, height: u32) -> Image {
+    pub(crate) fn blank(width: u32, height: u32) -> Image {
         let n = (width * height) as usize;
-        Image { width, height, pixels: vec![[0.0; 3]; n], written: vec![false; n] }
+        Image { width, height, pixels: vec![[0.0; 3]; n], written: vec![false; n], chart: vec![NO_CHART; n] }
     }
 
     /// Places `value(texel index)` at every covered texel.
@@ -41,13 +48,17 @@ impl Image {
         for (i, texel) in texels.texels.iter().enumerate() {
             image.pixels[texel.index as usize] = value(i);
             image.written[texel.index as usize] = true;
+            image.chart[texel.index as usize] = texel.chart;
         }
         image
     }
 
-    /// Grows written regions by `rings` texels: each unwritten texel next to
-    /// written ones takes their mean, so bilinear filtering at chart edges
-    /// never pulls in black. Returns how many texels were filled.
+    /// Grows written regions by `rings` texels, chart by chart: each
+    /// unwritten texel next to written ones joins the chart most of them
+    /// belong to (the lower id on a tie) and takes the mean of that chart's
+    /// neighbours, so bilinear filtering at a chart's edge reads only that
+    /// chart, never black or a neighbour chart (the unwrap keeps charts `2 ·
+    /// padding` texels apart). Returns how many texels were filled.
     pub fn dilate(&mut self, rings: u32) -> usize {
         let (w, h) = (self.width as i64, self.height as i64);
         let mut filled = 0;
@@ -59,33 +70,40 @@ impl Image {
                     if self.written[i] {
                         continue;
                     }
+                    let neighbours = [(-1, -1), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1)]
+                        .into_iter()
+                        .map(|(dx, dy)| (x + dx, y + dy))
+                        .filter(|&(nx, ny)| nx >= 0 && ny >= 0 && nx < w && ny < h)
+                        .map(|(nx, ny)| (ny * w + nx) as usize)
+                        .filter(|&j| self.written[j]);
+                    // The chart with the most written neighbours (few: a texel has 8).
+                    let mut counts: Vec<(u32, usize)> = Vec::new();
+                    for j in neighbours.clone() {
+                        match counts.iter_mut().find(|(c, _)| *c == self.chart[j]) {
+                            Some(entry) => entry.1 += 1,
+                            None => counts.push((self.chart[j], 1)),
+                        }
+                    }
+                    let Some(&(chart, count)) = counts.iter().max_by(|a, b| a.1.cmp(&b.1).then(b.0.cmp(&a.0))) else {
+                        continue;
+                    };
                     let mut sum = [0.0f32; 3];
-                    let mut count = 0;
-                    for (dx, dy) in [(-1, -1), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1)] {
-                        let (nx, ny) = (x + dx, y + dy);
-                        if nx < 0 || ny < 0 || nx >= w || ny >= h {
-                            continue;
-                        }
-                        let j = (ny * w + nx) as usize;
-                        if self.written[j] {
-                            for (s, v) in sum.iter_mut().zip(self.pixels[j]) {
-                                *s += v;
-                            }
-                            count += 1;
+                    for j in neighbours.filter(|&j| self.chart[j] == chart) {
+                        for (s, v) in sum.iter_mut().zip(self.pixels[j]) {
+                            *s += v;
                         }
                     }
-                    if count > 0 {
-                        updates.push((i, sum.map(|s| s / count as f32)));
-                    }
+                    updates.push((i, chart, sum.map(|s| s / count as f32)));
                 }
             }
             if updates.is_empty() {
                 break;
             }
             filled += updates.len();
-            for (i, value) in updates {
+            for (i, chart, value) in updates {
                 self.pixels[i] = value;
                 self.written[i] = true;
+                self.chart[i] = chart;
             }
         }
         filled
@@ -186,17 +204,28 @@ pub fn linear_to_srgb8(linear: f32) -> u8 {
 }
 
 /// The HDR lightmap (L_lm per texel) and the baked beauty image
-/// (albedo·L_lm + emission), both dilated by `rings` texels.
-pub fn images(texels: &TexelSet, solution: &Solution, rings: u32) -> (Image, Image, usize) {
+/// (albedo·L_lm + emission), both dilated by `rings` texels, then stitched
+/// along `seams`; with what dilation and stitching did.
+pub fn images(texels: &TexelSet, solution: &Solution, rings: u32, seams: &[SeamEdge]) -> (Image, Image, Fixups) {
     let mut lightmap = Image::from_texels(texels, |i| solution.lightmap[i]);
     let mut beauty = Image::from_texels(texels, |i| {
         let t = &texels.texels[i];
         let l = solution.lightmap[i];
         [0, 1, 2].map(|c| t.albedo[c] * l[c] + t.emission[c])
     });
-    let filled = lightmap.dilate(rings);
+    let dilated = lightmap.dilate(rings);
     beauty.dilate(rings);
-    (lightmap, beauty, filled)
+    let stitch = seams::stitch(&mut lightmap, seams);
+    seams::stitch(&mut beauty, seams);
+    (lightmap, beauty, Fixups { dilated, stitch })
+}
+
+/// What the export's fix-ups did to the lightmap.
+#[derive(Clone, Debug, Default)]
+pub struct Fixups {
+    /// Padding texels filled by dilation.
+    pub dilated: usize,
+    pub stitch: StitchStats,
 }
 
 #[cfg(test)]
@@ -256,5 +285,24 @@ mod tests {
         assert_eq!(image.dilate(1), 1);
         assert_eq!(image.pixels[1], [1.0, 2.0, 3.0]);
         assert!(!image.written[2]);
+    }
+
+    #[test]
+    fn dilation_takes_the_majority_chart_only() {
+        // Chart 0 on the left column, chart 1 at the right; the middle
+        // column's texels each touch both but more of one.
+        let mut image = Image::blank(3, 3);
+        for (i, value, chart) in [(0, 1.0, 0), (3, 1.0, 0), (6, 1.0, 0), (5, 9.0, 1)] {
+            image.pixels[i] = [value; 3];
+            image.written[i] = true;
+            image.chart[i] = chart;
+        }
+        image.dilate(1);
+        // (1,0) sees chart 0 twice, chart 1 once: chart 0's value alone.
+        assert_eq!((image.pixels[1], image.chart[1]), ([1.0; 3], 0));
+        // (1,1) sees chart 0 three times, chart 1 once.
+        assert_eq!((image.pixels[4], image.chart[4]), ([1.0; 3], 0));
+        // (2,0) sees only chart 1.
+        assert_eq!((image.pixels[2], image.chart[2]), ([9.0; 3], 1));
     }
 }

@@ -17,6 +17,7 @@ pub mod glb;
 pub mod lightmap;
 pub mod materials;
 pub mod primitives;
+pub mod seams;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -55,6 +56,8 @@ pub struct ExportStats {
     pub atlas_height: u32,
     /// Padding texels filled by dilation.
     pub dilated_texels: usize,
+    /// UV seams stitched in the lightmap and the baked texture.
+    pub stitch: seams::StitchStats,
     /// The RGBM lightmap's range R: L_lm = R · (A/255) · (RGB/255).
     pub rgbm_range: f64,
     pub notices: Vec<String>,
@@ -64,7 +67,8 @@ pub struct ExportStats {
 /// and returns what was written.
 pub fn run(baked: &Baked, options: &ExportOptions, dir: &Path) -> Result<ExportStats> {
     let (scene, atlas) = (&baked.scene, &baked.atlas);
-    let (lightmap, beauty, dilated_texels) = lightmap::images(&baked.texels, &baked.solution, options.dilation);
+    let seam_edges = seams::find(scene, atlas);
+    let (lightmap, beauty, fixups) = lightmap::images(&baked.texels, &baked.solution, options.dilation, &seam_edges);
     let exr_name = format!("{}.lightmap0.exr", scene.name);
     let exr = lightmap.encode_exr()?;
     let beauty_png = beauty.encode_png(options.exposure.exp2())?;
@@ -111,7 +115,8 @@ pub fn run(baked: &Baked, options: &ExportOptions, dir: &Path) -> Result<ExportS
         files,
         atlas_width: atlas.width,
         atlas_height: atlas.height,
-        dilated_texels,
+        dilated_texels: fixups.dilated,
+        stitch: fixups.stitch,
         rgbm_range: range,
         notices,
     })
