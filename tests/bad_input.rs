@@ -462,7 +462,8 @@ fn a_large_map_bakes_in_bounded_memory() {
         peak / map_bytes,
         memory.peak_rss_scope
     );
-    assert!(peak < 4.0 * map_bytes, "peak RSS {peak} for a map of {map_bytes} bytes");
+    // Measured 1.40× (565 MB): the decoded map plus one f32 copy at most.
+    assert!(peak < 2.0 * map_bytes, "peak RSS {peak} for a map of {map_bytes} bytes");
     assert!((mean / 0.625 - 1.0).abs() < 0.02, "mean L_lm {mean}, expected 0.625");
 }
 
