@@ -77,6 +77,21 @@ fn stage<T>(
     Ok(value)
 }
 
+/// Refuses options the adapter cannot honour, naming its limit: an atlas
+/// page wider than its largest 2D texture.
+pub fn check_adapter_limits(gpu: &Gpu, options: &BakeOptions) -> Result<()> {
+    let max = gpu.limits.max_texture_dimension_2d;
+    let wanted = options.unwrap.max_atlas_size;
+    if wanted > max {
+        bail!(
+            "--max-atlas-size {wanted} is larger than adapter '{}' allows: its largest texture is {max}×{max} \
+             texels (max_texture_dimension_2d); use --max-atlas-size {max} or less",
+            gpu.adapter.name
+        );
+    }
+    Ok(())
+}
+
 /// Unwraps, texelizes and solves `scene` under `lights` (if any).
 pub fn bake_scene(
     gpu: &Gpu,
@@ -85,6 +100,7 @@ pub fn bake_scene(
     options: &BakeOptions,
     progress: &mut dyn Progress,
 ) -> Result<Baked> {
+    check_adapter_limits(gpu, options)?;
     let name = scene.name.clone();
     let mut stages = Vec::new();
     let mut notices = scene.notices.clone();
@@ -200,8 +216,11 @@ pub fn load_environment(path: &Path, options: &EnvironmentOptions) -> Result<(Li
     let start = Instant::now();
     let loaded = EnvironmentMap::load(path, &environment::EnvLoadOptions { clamp_nonfinite: options.clamp_nonfinite })?;
     let lights = LightSet::extract(&loaded.map, options.lights, options.rotation_degrees, options.intensity);
+    let mut notices = loaded.notices;
     if lights.lights.is_empty() {
-        bail!("environment '{}': the map has no energy (every texel is black)", path.display());
+        // An error only for a scene with no emitters of its own (see `run`).
+        notices
+            .push("the environment has no energy (every texel is black): only emissive surfaces light the bake".into());
     }
     let report = EnvironmentReport {
         path: path.to_path_buf(),
@@ -216,7 +235,7 @@ pub fn load_environment(path: &Path, options: &EnvironmentOptions) -> Result<(Li
         intensity: options.intensity,
         seconds: start.elapsed().as_secs_f64(),
         memory: None,
-        notices: loaded.notices,
+        notices,
     };
     Ok((lights, report))
 }
@@ -246,6 +265,7 @@ pub fn preflight(config: &Config) -> Result<()> {
 /// `config.output` together with `report.json` only if everything succeeded.
 pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Report> {
     let start = Instant::now();
+    check_adapter_limits(gpu, &config.bake)?;
     let mut staging = output::Staging::new(&config.output, &config.inputs)?;
     let mut inputs = Vec::new();
     for input in &config.inputs {
@@ -289,8 +309,18 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
             progress.notice(notice);
         }
         staging.protect(export::source_files(&scene.source));
-        if environment.is_none() && !scene.materials.iter().any(|m| m.emission.iter().any(|&e| e > 0.0)) {
-            bail!("input '{}': nothing lights the scene: give --env or use emissive materials", input.display());
+        let emissive = scene.materials.iter().any(|m| m.emission.iter().any(|&e| e > 0.0));
+        match (&environment, &config.environment) {
+            (None, _) if !emissive => {
+                bail!("input '{}': nothing lights the scene: give --env or use emissive materials", input.display())
+            }
+            (Some((lights, _)), Some(env)) if lights.lights.is_empty() && !emissive => bail!(
+                "environment '{}': the map has no energy (every texel is black) and input '{}' has no emissive \
+                 materials: nothing lights the scene",
+                env.display(),
+                input.display()
+            ),
+            _ => {}
         }
         let lights = environment.as_ref().map(|(lights, _)| lights);
         let baked = bake_scene(gpu, scene, lights, &bake_options, progress)

@@ -60,9 +60,11 @@ pub fn packed_bytes(asset: &SourceAsset, accessor: &gltf::Accessor) -> Result<Ve
             let total = count.checked_mul(size).filter(|&t| t <= MAX_VIEWLESS_BYTES);
             match total {
                 Some(total) => vec![0u8; total],
-                None => {
-                    bail!("{label}: declares {count} elements with no data, more than bake accepts")
-                }
+                None => bail!(
+                    "{label}: {count} elements of {size} bytes with no bufferView (zeros, plus sparse values) \
+                     exceed the {} MiB bake accepts",
+                    MAX_VIEWLESS_BYTES >> 20
+                ),
             }
         }
     };
@@ -78,8 +80,10 @@ pub fn packed_bytes(asset: &SourceAsset, accessor: &gltf::Accessor) -> Result<Ve
         };
         let values = sparse.values();
         let value_bytes = asset.view_bytes(&values.view())?;
+        let fits = |offset: usize, bytes: usize, len: usize| offset.checked_add(bytes).is_some_and(|end| end <= len);
         ensure!(
-            indices.offset() + n * index_size <= index_bytes.len() && values.offset() + n * size <= value_bytes.len(),
+            fits(indices.offset(), n * index_size, index_bytes.len())
+                && fits(values.offset(), n * size, value_bytes.len()),
             "{label}: sparse data runs past the end of its bufferView"
         );
         for k in 0..n {

@@ -10,7 +10,7 @@ pub mod accessor;
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result, anyhow, bail};
+use anyhow::{Context, Result, anyhow, bail, ensure};
 use base64::Engine as _;
 
 /// Extensions whose meaning `bake` understands or can safely carry through
@@ -48,8 +48,8 @@ impl SourceAsset {
     /// resolved against; `None` refuses external files.
     pub fn from_bytes(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<SourceAsset> {
         let (json_bytes, blob) = if bytes.starts_with(b"glTF") {
-            let glb = gltf::binary::Glb::from_slice(bytes).map_err(|e| anyhow!("not a valid .glb: {e}"))?;
-            (glb.json.into_owned(), glb.bin.map(|b| b.into_owned()))
+            let (json, bin) = split_glb(bytes)?;
+            (json.to_vec(), bin.map(<[u8]>::to_vec))
         } else {
             if !looks_like_json(bytes) {
                 bail!("not a glTF file (neither .glb binary nor JSON)");
@@ -61,6 +61,7 @@ impl SourceAsset {
         check_required_extensions(&json)?;
         let root: gltf::json::Root =
             serde_json::from_value(json.clone()).map_err(|e| anyhow!("invalid glTF JSON: {e}"))?;
+        check_unvalidated(&root)?;
         let document =
             gltf::Document::from_json(root).map_err(|e| anyhow!("invalid glTF: {}", describe_validation(&e)))?;
 
@@ -83,6 +84,18 @@ impl SourceAsset {
                 );
             }
             buffers.push(data);
+        }
+        // Images are decoded or copied later; a missing or refused file is an
+        // error now, before any baking, not at export.
+        for image in document.images() {
+            if let gltf::image::Source::Uri { uri, .. } = image.source()
+                && !uri.starts_with("data:")
+            {
+                let path = external_path(uri, base).with_context(|| format!("image {}", image.index()))?;
+                let file = std::fs::metadata(&path).map_err(|e| anyhow!("cannot read '{}': {e}", path.display()));
+                file.and_then(|m| if m.is_file() { Ok(()) } else { bail!("'{}' is not a file", path.display()) })
+                    .with_context(|| format!("image {}", image.index()))?;
+            }
         }
         Ok(SourceAsset { path: path.to_path_buf(), document, json, buffers })
     }
@@ -121,6 +134,37 @@ impl SourceAsset {
     }
 }
 
+/// What the gltf crate assumes but does not validate, found by
+/// tests/fuzz_import.rs: its validation reads each primitive's POSITION
+/// accessor by index before checking that it exists, and `Image::source`
+/// unwraps an image's `uri`, or the `mimeType` of an image in a buffer view.
+/// Either way a malformed file panics; check them first.
+fn check_unvalidated(root: &gltf::json::Root) -> Result<()> {
+    for (i, image) in root.images.iter().enumerate() {
+        match (&image.buffer_view, &image.uri, &image.mime_type) {
+            (Some(_), None, Some(_)) | (None, Some(_), _) => {}
+            (Some(_), None, None) => bail!("invalid glTF: images[{i}] is in a bufferView but has no mimeType"),
+            (None, None, _) => bail!("invalid glTF: images[{i}] has neither a uri nor a bufferView"),
+            (Some(_), Some(_), _) => bail!("invalid glTF: images[{i}] has both a uri and a bufferView"),
+        }
+    }
+    let positions = gltf::json::validation::Checked::Valid(gltf::json::mesh::Semantic::Positions);
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            if let Some(index) = primitive.attributes.get(&positions)
+                && index.value() >= root.accessors.len()
+            {
+                bail!(
+                    "invalid glTF: meshes[{m}].primitives[{p}].attributes.POSITION is accessor {}, but there are {} accessors",
+                    index.value(),
+                    root.accessors.len()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
 fn looks_like_json(bytes: &[u8]) -> bool {
     let text = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     text.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{')
@@ -155,6 +199,13 @@ fn resolve_uri(uri: &str, base: Option<&Path>) -> Result<Vec<u8>> {
             .decode(payload.trim())
             .map_err(|e| anyhow!("data URI is not valid base64: {e}"));
     }
+    let path = external_path(uri, base)?;
+    std::fs::read(&path).map_err(|e| anyhow!("cannot read '{}': {e}", path.display()))
+}
+
+/// The file a relative URI names inside `base`, refusing URIs that leave it
+/// (`..`, absolute paths) or name another scheme.
+fn external_path(uri: &str, base: Option<&Path>) -> Result<PathBuf> {
     if uri.contains("://") {
         bail!("refusing to fetch '{uri}': only files beside the asset and data URIs are read");
     }
@@ -166,8 +217,43 @@ fn resolve_uri(uri: &str, base: Option<&Path>) -> Result<Vec<u8>> {
     {
         bail!("refusing '{uri}': it points outside the asset's folder");
     }
-    let path = base.join(relative);
-    std::fs::read(&path).map_err(|e| anyhow!("cannot read '{}': {e}", path.display()))
+    Ok(base.join(relative))
+}
+
+/// Splits a `.glb` into its JSON chunk and its BIN chunk (if any), saying
+/// exactly what is cut short or malformed. Chunks after BIN are ignored, as
+/// the glTF spec allows.
+fn split_glb(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>)> {
+    let u32_at = |at: usize| bytes.get(at..at + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
+    let (Some(version), Some(declared)) = (u32_at(4), u32_at(8)) else {
+        bail!("truncated .glb: {} bytes, shorter than the 12-byte header", bytes.len());
+    };
+    ensure!(version == 2, "unsupported .glb version {version} (bake reads glTF 2.0)");
+    ensure!(
+        declared <= bytes.len(),
+        "truncated .glb: the header declares {declared} bytes but the file has {}",
+        bytes.len()
+    );
+    let mut chunks: Vec<(&[u8], &[u8])> = Vec::new();
+    let mut at = 12;
+    while at < declared && chunks.len() < 2 {
+        ensure!(at + 8 <= declared, "truncated .glb: the chunk header at byte {at} is cut off");
+        let (length, kind) = (u32_at(at).unwrap_or(0), &bytes[at + 4..at + 8]);
+        let start = at + 8;
+        ensure!(
+            start <= declared && length <= declared - start,
+            "truncated .glb: the {} chunk at byte {at} declares {length} bytes but {} remain",
+            String::from_utf8_lossy(kind).trim_end_matches('\0'),
+            declared.saturating_sub(start)
+        );
+        chunks.push((kind, &bytes[start..start + length]));
+        at = start + length;
+    }
+    match chunks.as_slice() {
+        [(b"JSON", json), rest @ ..] => Ok((json, rest.first().filter(|(kind, _)| kind == b"BIN\0").map(|c| c.1))),
+        [] => bail!("truncated .glb: it has no JSON chunk"),
+        [(kind, _), ..] => bail!("malformed .glb: the first chunk is '{}', not JSON", String::from_utf8_lossy(kind)),
+    }
 }
 
 /// Decodes `%XX` escapes (URIs in glTF are percent-encoded).

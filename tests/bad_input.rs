@@ -1,0 +1,490 @@
+//! Bad input through the real `bake` binary, each case in a fresh folder:
+//! every malformed scene or environment ends with exit code 2, one line on
+//! stderr naming the file and the problem, and nothing left behind (no
+//! output folder, no staging folder, no partial file). The malformed files
+//! are made here from the fixture GLBs, never committed.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use bake::environment::{EnvironmentMap, ExrPrecision};
+use bake::report::Report;
+use serde_json::{Value, json};
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures").join(name)
+}
+
+/// The fixture `sphere_on_ground.glb` as (JSON, BIN chunk).
+fn parts() -> (Value, Vec<u8>) {
+    let bytes = std::fs::read(fixture("sphere_on_ground.glb")).unwrap();
+    let glb = gltf::binary::Glb::from_slice(&bytes).unwrap();
+    (serde_json::from_slice(&glb.json).unwrap(), glb.bin.unwrap().into_owned())
+}
+
+fn glb(json: &Value, bin: &[u8]) -> Vec<u8> {
+    bake::export::glb::encode(&serde_json::to_vec(json).unwrap(), bin)
+}
+
+/// Byte offset in the BIN chunk of element `element` of accessor `accessor`.
+fn element_offset(json: &Value, accessor: usize, element: usize) -> usize {
+    let a = &json["accessors"][accessor];
+    let view = &json["bufferViews"][a["bufferView"].as_u64().unwrap() as usize];
+    let size = match a["type"].as_str().unwrap() {
+        "VEC3" => 12,
+        "VEC2" => 8,
+        _ => 4,
+    };
+    view["byteOffset"].as_u64().unwrap_or(0) as usize + a["byteOffset"].as_u64().unwrap_or(0) as usize + element * size
+}
+
+/// A fresh folder to run `bake` in.
+struct Case {
+    dir: tempfile::TempDir,
+}
+
+impl Case {
+    fn new() -> Case {
+        Case { dir: tempfile::tempdir().unwrap() }
+    }
+
+    fn path(&self, name: &str) -> PathBuf {
+        self.dir.path().join(name)
+    }
+
+    fn write(&self, name: &str, bytes: &[u8]) -> &Case {
+        std::fs::write(self.path(name), bytes).unwrap();
+        self
+    }
+
+    fn entries(&self) -> Vec<String> {
+        let mut names: Vec<String> = std::fs::read_dir(self.dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    }
+
+    /// Runs `bake ARGS -o out -q` with a small atlas and light budget unless ARGS set them.
+    fn run(&self, args: &[&str]) -> Output {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_bake"));
+        command.current_dir(self.dir.path()).args(args).args(["-o", "out", "-q"]);
+        for default in [["--max-atlas-size", "32"], ["--lights", "16"], ["--max-shots", "64"]] {
+            if !args.contains(&default[0]) {
+                command.args(default);
+            }
+        }
+        command.output().expect("bake runs")
+    }
+
+    /// Runs `bake INPUT --env sky_constant.hdr` on a file written here.
+    fn bake(&self, input: &str) -> Output {
+        let env = fixture("sky_constant.hdr");
+        self.run(&[input, "--env", env.to_str().unwrap()])
+    }
+
+    /// The run failed with exit code 2, printing one line that names `file` and
+    /// contains `problem`, and left the folder as it was before the run.
+    fn refused(&self, args: &[&str], file: &str, problem: &str) -> String {
+        let before = self.entries();
+        let output = if args.len() == 1 { self.bake(args[0]) } else { self.run(args) };
+        let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+        assert_eq!(output.status.code(), Some(2), "stderr: {stderr}");
+        assert_eq!(stderr.lines().count(), 1, "one line only: {stderr}");
+        let line = stderr.lines().next().unwrap();
+        assert!(line.starts_with("bake: error: "), "{line}");
+        assert!(line.contains(file), "the error does not name '{file}': {line}");
+        assert!(line.contains(problem), "the error does not say '{problem}': {line}");
+        assert_eq!(self.entries(), before, "the run left files behind");
+        assert!(!self.path("out").exists());
+        eprintln!("{line}");
+        line.to_string()
+    }
+}
+
+#[test]
+fn a_truncated_glb_is_refused() {
+    let bytes = std::fs::read(fixture("sphere_on_ground.glb")).unwrap();
+    let case = Case::new();
+    case.write("half.glb", &bytes[..bytes.len() / 2]);
+    case.refused(&["half.glb"], "half.glb", "truncated .glb: the header declares");
+    // Cut inside the header, and inside the JSON chunk with a length field fixed to match.
+    case.write("header.glb", &bytes[..10]);
+    case.refused(&["header.glb"], "header.glb", "shorter than the 12-byte header");
+    let mut cut = bytes[..100].to_vec();
+    cut[8..12].copy_from_slice(&100u32.to_le_bytes());
+    case.write("chunk.glb", &cut);
+    case.refused(&["chunk.glb"], "chunk.glb", "the JSON chunk at byte 12 declares");
+}
+
+#[test]
+fn a_glb_with_a_header_length_below_its_header_is_refused() {
+    // Regression: gltf's own reader computes `length - 12` and overflows
+    // (a panic in debug builds) when the declared length is under 12.
+    let mut bytes = std::fs::read(fixture("sphere_on_ground.glb")).unwrap();
+    bytes[8..12].copy_from_slice(&4u32.to_le_bytes());
+    let case = Case::new();
+    case.write("short.glb", &bytes);
+    case.refused(&["short.glb"], "short.glb", "no JSON chunk");
+}
+
+#[test]
+fn wrong_magic_and_version_are_refused() {
+    let bytes = std::fs::read(fixture("sphere_on_ground.glb")).unwrap();
+    let case = Case::new();
+    let mut magic = bytes.clone();
+    magic[..4].copy_from_slice(b"glTX");
+    case.write("magic.glb", &magic);
+    case.refused(&["magic.glb"], "magic.glb", "not a glTF file");
+    let mut version = bytes;
+    version[4] = 1;
+    case.write("v1.glb", &version);
+    case.refused(&["v1.glb"], "v1.glb", "unsupported .glb version 1");
+}
+
+#[test]
+fn bad_json_is_refused_with_its_position() {
+    let (json, bin) = parts();
+    let mut text = serde_json::to_vec(&json).unwrap();
+    let at = text.iter().position(|&c| c == b':').unwrap();
+    text[at] = b';';
+    let case = Case::new();
+    case.write("json.glb", &bake::export::glb::encode(&text, &bin));
+    case.refused(&["json.glb"], "json.glb", "invalid glTF JSON: expected `:` at line 1");
+    // Valid JSON that is not glTF: a required field missing.
+    let mut json = json;
+    json["accessors"][0].as_object_mut().unwrap().remove("componentType");
+    case.write("schema.glb", &glb(&json, &bin));
+    case.refused(&["schema.glb"], "schema.glb", "invalid glTF JSON: missing field `componentType`");
+}
+
+#[test]
+fn an_accessor_past_its_buffer_view_is_refused() {
+    let (mut json, bin) = parts();
+    json["accessors"][0]["count"] = json!(26); // the view holds 25 positions
+    let case = Case::new();
+    case.write("count.glb", &glb(&json, &bin));
+    case.refused(&["count.glb"], "count.glb", "accessor 0: 26 elements of 12 bytes");
+    let (mut json, bin) = parts();
+    json["accessors"][0]["byteOffset"] = json!(4);
+    case.write("offset.glb", &glb(&json, &bin));
+    case.refused(&["offset.glb"], "offset.glb", "run past the end of bufferView 0");
+    let (mut json, bin) = parts();
+    json["bufferViews"][0]["byteOffset"] = json!(bin.len() - 100);
+    case.write("view.glb", &glb(&json, &bin));
+    case.refused(&["view.glb"], "view.glb", "bufferView 0 (300 bytes at");
+}
+
+#[test]
+fn indices_past_the_vertex_count_are_refused() {
+    let (json, mut bin) = parts();
+    let at = element_offset(&json, 3, 5);
+    bin[at..at + 4].copy_from_slice(&25u32.to_le_bytes()); // 25 vertices: 0..=24
+    let case = Case::new();
+    case.write("indices.glb", &glb(&json, &bin));
+    case.refused(&["indices.glb"], "indices.glb", "index 25 is past the vertex count 25");
+}
+
+#[test]
+fn non_finite_positions_are_refused() {
+    let case = Case::new();
+    for (name, value) in [("nan.glb", f32::NAN), ("inf.glb", f32::INFINITY), ("neg.glb", f32::NEG_INFINITY)] {
+        let (json, mut bin) = parts();
+        let at = element_offset(&json, 4, 7) + 4; // the sphere's 8th vertex, y
+        bin[at..at + 4].copy_from_slice(&value.to_le_bytes());
+        case.write(name, &glb(&json, &bin));
+        case.refused(&[name], name, "mesh 1 'sphere' on node 1 'sphere', primitive 0: POSITION 7 is not finite");
+    }
+    // Finite positions that a node transform takes past f32's range.
+    let (mut json, bin) = parts();
+    json["nodes"][1]["scale"] = json!([1e38, 1e38, 1e38]);
+    json["nodes"][1]["translation"] = json!([3e38, 0.0, 0.0]);
+    case.write("overflow.glb", &glb(&json, &bin));
+    case.refused(&["overflow.glb"], "overflow.glb", "the node transform overflows");
+}
+
+#[test]
+fn huge_declared_counts_are_refused_before_allocating() {
+    // Each declaration would need tens of GiB if believed; the process would
+    // die or swap instead of printing the line checked here.
+    let case = Case::new();
+    let (mut json, bin) = parts();
+    json["accessors"][4]["count"] = json!(u32::MAX);
+    case.write("count.glb", &glb(&json, &bin));
+    case.refused(&["count.glb"], "count.glb", "accessor 4: 4294967295 elements of 12 bytes");
+    let (mut json, bin) = parts();
+    json["accessors"][7]["count"] = json!(2_000_000_000u32);
+    json["bufferViews"][7]["byteLength"] = json!(8_000_000_000u64);
+    case.write("view.glb", &glb(&json, &bin));
+    case.refused(&["view.glb"], "view.glb", "bufferView 7 (8000000000 bytes at");
+    let (mut json, bin) = parts();
+    json["buffers"][0]["byteLength"] = json!(1u64 << 40);
+    case.write("buffer.glb", &glb(&json, &bin));
+    case.refused(&["buffer.glb"], "buffer.glb", "buffer 0 is truncated: 66880 bytes of the declared 1099511627776");
+    // A sparse accessor with no buffer view is zeros plus its sparse values:
+    // its count alone decides the size.
+    let (mut json, bin) = parts();
+    json["accessors"][4].as_object_mut().unwrap().remove("bufferView");
+    json["accessors"][4]["count"] = json!(1_000_000_000u32);
+    json["accessors"][4]["sparse"] = json!({
+        "count": 1,
+        "indices": { "bufferView": 3, "componentType": 5125 },
+        "values": { "bufferView": 0 },
+    });
+    case.write("viewless.glb", &glb(&json, &bin));
+    case.refused(&["viewless.glb"], "viewless.glb", "accessor 4: 1000000000 elements of 12 bytes with no bufferView");
+}
+
+/// The fixture as `NAME.gltf` with its buffer in the file `uri`.
+fn gltf_with_buffer(case: &Case, name: &str, uri: &str) -> Vec<u8> {
+    let (mut json, bin) = parts();
+    json["buffers"][0]["uri"] = json!(uri);
+    case.write(name, &serde_json::to_vec(&json).unwrap());
+    bin
+}
+
+#[test]
+fn a_missing_buffer_file_is_named() {
+    let case = Case::new();
+    gltf_with_buffer(&case, "scene.gltf", "scene%20data.bin");
+    let line = case.refused(&["scene.gltf"], "scene.gltf", "buffer 0: cannot read");
+    assert!(line.contains("scene data.bin") && line.contains("No such file"), "{line}");
+    // Present but shorter than declared.
+    let bin = gltf_with_buffer(&case, "short.gltf", "short.bin");
+    case.write("short.bin", &bin[..1000]);
+    case.refused(&["short.gltf"], "short.gltf", "buffer 0 is truncated: 1000 bytes of the declared 66880");
+}
+
+/// The fixture with its ground textured by image file `uri`.
+fn glb_with_image(uri: &str) -> Vec<u8> {
+    let (mut json, bin) = parts();
+    json["images"] = json!([{ "uri": uri }]);
+    json["textures"] = json!([{ "source": 0 }]);
+    json["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] = json!({ "index": 0 });
+    glb(&json, &bin)
+}
+
+#[test]
+fn a_missing_image_file_is_named_before_baking() {
+    let case = Case::new();
+    case.write("textured.glb", &glb_with_image("albedo.png"));
+    let line = case.refused(&["textured.glb"], "textured.glb", "image 0: cannot read");
+    assert!(line.contains("albedo.png") && line.contains("No such file"), "{line}");
+    // A folder where the image should be.
+    std::fs::create_dir(case.path("folder.png")).unwrap();
+    case.write("folder.glb", &glb_with_image("folder.png"));
+    case.refused(&["folder.glb"], "folder.glb", "image 0: 'folder.png' is not a file");
+}
+
+#[test]
+fn uris_pointing_outside_the_input_folder_are_refused() {
+    // The files exist, so only the policy can refuse them.
+    let outer = tempfile::tempdir().unwrap();
+    let (_, bin) = parts();
+    std::fs::write(outer.path().join("secret.bin"), &bin).unwrap();
+    let case = Case { dir: tempfile::tempdir_in(outer.path()).unwrap() };
+    let absolute = outer.path().join("secret.bin");
+    for (name, uri) in [
+        ("up.gltf", "../secret.bin"),
+        ("deep.gltf", "sub/../../secret.bin"),
+        ("escaped.gltf", "%2E%2E/secret.bin"),
+        ("absolute.gltf", absolute.to_str().unwrap()),
+        ("remote.gltf", "https://example.com/secret.bin"),
+    ] {
+        gltf_with_buffer(&case, name, uri);
+        case.refused(&[name], name, "buffer 0: refusing");
+    }
+    std::fs::write(outer.path().join("secret.png"), b"\x89PNG\r\n\x1a\n").unwrap();
+    case.write("image.glb", &glb_with_image("../secret.png"));
+    case.refused(
+        &["image.glb"],
+        "image.glb",
+        "image 0: refusing '../secret.png': it points outside the asset's folder",
+    );
+}
+
+#[test]
+fn unsupported_required_extensions_are_refused() {
+    let case = Case::new();
+    let (mut json, bin) = parts();
+    json["extensionsUsed"] = json!(["EXT_unknown_thing"]);
+    json["extensionsRequired"] = json!(["EXT_unknown_thing"]);
+    case.write("ext.glb", &glb(&json, &bin));
+    case.refused(&["ext.glb"], "ext.glb", "requires the extension EXT_unknown_thing, which bake does not support");
+    json["extensionsUsed"] = json!(["KHR_draco_mesh_compression"]);
+    json["extensionsRequired"] = json!(["KHR_draco_mesh_compression"]);
+    case.write("draco.glb", &glb(&json, &bin));
+    case.refused(&["draco.glb"], "draco.glb", "compressed with KHR_draco_mesh_compression");
+}
+
+#[test]
+fn a_bad_second_input_leaves_none_of_the_first_ones_outputs() {
+    let case = Case::new();
+    std::fs::create_dir(case.path("out")).unwrap();
+    std::fs::write(case.path("out/keep.txt"), "previous").unwrap();
+    std::fs::copy(fixture("sphere.glb"), case.path("good.glb")).unwrap();
+    let (json, bin) = parts();
+    let mut bytes = glb(&json, &bin);
+    bytes.truncate(bytes.len() - 8);
+    case.write("bad.glb", &bytes);
+    let env = fixture("sky_constant.hdr");
+    let output = case.run(&["good.glb", "bad.glb", "--env", env.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(2), "{stderr}");
+    assert!(stderr.trim().starts_with("bake: error: input 'bad.glb': truncated .glb"), "{stderr}");
+    let left: Vec<_> = std::fs::read_dir(case.path("out")).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(left, ["keep.txt"], "the failed run left files in the output folder");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Environments
+
+fn write_exr(case: &Case, name: &str, map: &EnvironmentMap) {
+    bake::environment::write_exr(map, case.path(name), ExrPrecision::Float, false).unwrap();
+}
+
+fn report(case: &Case) -> Report {
+    serde_json::from_slice(&std::fs::read(case.path("out/report.json")).unwrap()).unwrap()
+}
+
+/// Runs a bake expected to succeed; returns the sphere's mean L_lm (red).
+fn sphere_mean(case: &Case, args: &[&str]) -> (f64, Report) {
+    std::fs::copy(fixture("sphere.glb"), case.path("sphere.glb")).unwrap();
+    let mut all = vec!["sphere.glb"];
+    all.extend_from_slice(args);
+    let output = case.run(&all);
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let report = report(case);
+    let stats = &report.scenes[0].energy[0].stats;
+    assert_eq!(stats.invalid_texels, 0);
+    (stats.mean_lightmap[0], report)
+}
+
+#[test]
+fn non_finite_environment_texels_are_refused_or_clamped_when_asked() {
+    let case = Case::new();
+    std::fs::copy(fixture("sphere.glb"), case.path("sphere.glb")).unwrap();
+    let mut map = EnvironmentMap::from_fn(64, 32, |_| [1.0; 3]);
+    map.texels[100] = [f32::NAN, 1.0, 1.0];
+    map.texels[900] = [f32::INFINITY; 3];
+    map.texels[1500][2] = f32::NEG_INFINITY;
+    write_exr(&case, "bad.exr", &map);
+    case.refused(
+        &["sphere.glb", "--env", "bad.exr"],
+        "environment 'bad.exr'",
+        "5 non-finite texel values (1 NaN, 3 +inf, 1 -inf) at (col,row) (36,1), (4,14), (28,23)",
+    );
+    // --clamp-nonfinite: NaN and -inf become 0, +inf the largest finite value (1 here), so the
+    // sphere sees a white furnace of 1 short of 1.3 texels' worth of sky.
+    let (mean, report) = sphere_mean(&case, &["--env", "bad.exr", "--clamp-nonfinite"]);
+    let notices = &report.environment.as_ref().unwrap().notices;
+    assert!(notices.iter().any(|n| n.contains("replaced 5 non-finite texel values")), "{notices:?}");
+    eprintln!("clamped map: sphere mean L_lm {mean:.4}");
+    assert!((mean - 1.0).abs() < 0.02, "mean L_lm {mean}");
+}
+
+#[test]
+fn a_black_environment_is_an_error_without_emitters_and_ignored_with_them() {
+    let case = Case::new();
+    write_exr(&case, "black.exr", &EnvironmentMap::from_fn(64, 32, |_| [0.0; 3]));
+    std::fs::copy(fixture("sphere.glb"), case.path("sphere.glb")).unwrap();
+    case.refused(
+        &["sphere.glb", "--env", "black.exr"],
+        "environment 'black.exr'",
+        "the map has no energy (every texel is black) and input 'sphere.glb' has no emissive materials",
+    );
+    // A lamp-lit room bakes under it, lit by the lamp alone.
+    use bake::fixtures::{MeshData, Placement, SceneBuilder};
+    let mut scene = SceneBuilder::new();
+    scene.object("room", &MeshData::room([4.0, 3.0, 4.0]), [0.7, 0.7, 0.7, 1.0], [0.0; 3], Placement::default());
+    scene.object(
+        "lamp",
+        &MeshData::plane(1.0, 1.0, 1),
+        [0.0, 0.0, 0.0, 1.0],
+        [20.0; 3],
+        Placement::at(glam::Vec3::new(0.0, 1.45, 0.0)).rotated(glam::Quat::from_rotation_x(std::f32::consts::PI)),
+    );
+    case.write("lamp.glb", &scene.to_glb());
+    let output = case.run(&["lamp.glb", "--env", "black.exr"]);
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let report = report(&case);
+    let environment = report.environment.as_ref().unwrap();
+    assert_eq!(environment.lights, 0);
+    assert!(environment.notices.iter().any(|n| n.contains("no energy")), "{:?}", environment.notices);
+    let scene = &report.scenes[0];
+    assert!(scene.skipped.iter().any(|s| s.pass == "direct" && s.reason.contains("no energy")), "{:?}", scene.skipped);
+    assert!(scene.energy[0].stats.mean_lightmap[0] > 0.1, "the lamp lit the room");
+}
+
+#[test]
+fn a_one_by_one_map_is_a_constant_sky() {
+    let case = Case::new();
+    write_exr(&case, "one.exr", &EnvironmentMap { width: 1, height: 1, texels: vec![[0.5, 0.5, 0.5]] });
+    let (mean, _) = sphere_mean(&case, &["--env", "one.exr"]);
+    eprintln!("1×1 map of 0.5: sphere mean L_lm {mean:.4}");
+    assert!((mean / 0.5 - 1.0).abs() < 0.02, "white furnace: mean L_lm {mean}, expected 0.5");
+}
+
+#[test]
+fn maps_that_are_not_two_to_one_are_refused_with_their_size() {
+    let case = Case::new();
+    std::fs::copy(fixture("sphere.glb"), case.path("sphere.glb")).unwrap();
+    for (w, h) in [(64, 64), (3, 1), (65, 32)] {
+        let name = format!("map{w}x{h}.exr");
+        write_exr(&case, &name, &EnvironmentMap::from_fn(w, h, |_| [1.0; 3]));
+        case.refused(
+            &["sphere.glb", "--env", &name],
+            &format!("environment '{name}'"),
+            &format!("not an equirectangular map: {w}×{h} is not 2:1"),
+        );
+    }
+}
+
+#[test]
+fn a_large_map_bakes_in_bounded_memory() {
+    // 8192×4096 (33.5 M texels, 403 MB as f32 RGB): a sky of 1 above the
+    // horizon and 0.25 below, so the sphere's mean L_lm is (1 + 0.25)/2.
+    let case = Case::new();
+    let map = EnvironmentMap::from_fn(8192, 4096, |d| if d[1] > 0.0 { [1.0; 3] } else { [0.25; 3] });
+    let map_bytes = (map.texels.len() * 12) as f64;
+    bake::environment::write_hdr(&map, case.path("large.hdr")).unwrap();
+    drop(map);
+    let (mean, report) = sphere_mean(&case, &["--env", "large.hdr", "--lights", "64"]);
+    let environment = report.environment.as_ref().unwrap();
+    assert_eq!((environment.width, environment.height), (8192, 4096));
+    let memory = environment.memory.as_ref().expect("the environment stage's memory is measured");
+    let peak = memory.peak_rss_bytes as f64;
+    eprintln!(
+        "8192×4096 map: {:.1} s, peak RSS {:.0} MB ({:.2}× the map's f32 texels, scope {}); sphere mean L_lm {mean:.4}",
+        environment.seconds,
+        peak / 1e6,
+        peak / map_bytes,
+        memory.peak_rss_scope
+    );
+    // Measured 1.40× (565 MB): the decoded map plus one f32 copy at most.
+    assert!(peak < 2.0 * map_bytes, "peak RSS {peak} for a map of {map_bytes} bytes");
+    assert!((mean / 0.625 - 1.0).abs() < 0.02, "mean L_lm {mean}, expected 0.625");
+}
+
+#[test]
+fn an_atlas_larger_than_the_adapter_allows_is_refused_naming_the_limit() {
+    let case = Case::new();
+    std::fs::copy(fixture("sphere.glb"), case.path("sphere.glb")).unwrap();
+    let env = fixture("sky_constant.hdr");
+    let line = case.refused(
+        &["sphere.glb", "--env", env.to_str().unwrap(), "--max-atlas-size", "100000"],
+        "--max-atlas-size 100000",
+        "its largest texture is",
+    );
+    // The limit is the adapter's own, named with a number.
+    let gpu = bake::gpu::Gpu::new(None).unwrap();
+    let max = gpu.limits.max_texture_dimension_2d;
+    assert!(line.contains(&format!("{max}×{max} texels")) && line.contains(&gpu.adapter.name), "{line}");
+    // One texel over the limit is refused too; the limit itself passes the check.
+    let over = (max + 1).to_string();
+    case.refused(&["sphere.glb", "--env", env.to_str().unwrap(), "--max-atlas-size", &over], &over, "largest texture");
+    let mut options = bake::config::BakeOptions::default();
+    options.unwrap.max_atlas_size = max;
+    bake::check_adapter_limits(&gpu, &options).unwrap();
+}
