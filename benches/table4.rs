@@ -48,7 +48,10 @@ enum Mode {
 enum Section {
     Grid,
     Ceiling,
+    /// The direct pass as texels, lights, triangles and shadow maps double.
     Scaling,
+    /// The bounce pass as texels and triangles double.
+    Bounce,
 }
 
 #[derive(Parser)]
@@ -66,7 +69,7 @@ struct Args {
     #[arg(long, value_delimiter = ',', default_values = ["cube", "budget"])]
     modes: Vec<Mode>,
     /// Which parts to run.
-    #[arg(long, value_delimiter = ',', default_values = ["grid", "ceiling", "scaling"])]
+    #[arg(long, value_delimiter = ',', default_values = ["grid", "ceiling", "scaling", "bounce"])]
     only: Vec<Section>,
     /// Equirectangular environment map.
     #[arg(long)]
@@ -239,7 +242,7 @@ fn main() -> Result<()> {
         args.reference_texels = args.reference_texels.min(64);
         args.reference_samples = args.reference_samples.min(1024);
         args.ceiling = vec!["256:96".into()];
-        args.only.retain(|s| *s != Section::Scaling);
+        args.only.retain(|s| !matches!(s, Section::Scaling | Section::Bounce));
     }
     let started = Instant::now();
     let gpu = Gpu::new(None)?;
@@ -272,6 +275,9 @@ fn main() -> Result<()> {
     }
     if args.only.contains(&Section::Scaling) {
         scaling(&gpu, &map)?;
+    }
+    if args.only.contains(&Section::Bounce) {
+        bounce_scaling(&gpu)?;
     }
     println!("\nbenchmark wall time: {:.0} s", started.elapsed().as_secs_f64());
     Ok(())
@@ -513,19 +519,26 @@ fn direct_batch(gpu: &Gpu, map_size: u32, batch_size: u32) -> u32 {
         .min(gpu.limits.max_texture_array_layers as u64) as u32
 }
 
+/// Filter widths (depth loads per pair) the bare gather is also timed with.
+const TAPS: [u32; 3] = [9, 25, 73];
+
 fn ceiling_table(gpu: &Gpu, args: &Args, statues: &Statues, map: &EnvironmentMap) -> Result<()> {
     println!("\n## Direct pass against the bare-kernel ceiling\n");
     println!(
         "The real direct pass (depth maps + soft-shadow gather, `solve::direct::run`) and a bare kernel of the same \
          shape on the same texels, lights, shadow-map size and batch size (benches/table4/ceiling.rs: depth maps of \
          positions only; per texel and light one dot product, the projection, one depth load and a compare). Rates \
-         in M texel·light pairs/s. \"empty\" is the gather with no lights in a batch: the fixed cost of a batch.\n"
+         in M texel·light pairs/s. \"empty\" is the gather with no lights in a batch: the fixed cost of a batch. \
+         \"gather, n loads\" is the bare gather alone with a filter of n depth loads per pair (the real pass's soft \
+         shadows take a 9-tap blocker search, then 16 taps × 4 loads where a blocker was found, and a tap that \
+         lands on the receiver's own plane loads 4 neighbours more).\n"
     );
     println!(
         "| atlas | texels | lights | shadow map | batch | real (s) | real rate | bare depth (s) | bare gather (s) \
-         | bare both (s) | bare rate | real / bare | empty batches (s) | cores |"
+         | bare both (s) | bare rate | real / bare | empty batches (s) | {} | cores |",
+        TAPS.map(|n| format!("gather, {n} loads (s)")).join(" | ")
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|{}---|", "---|".repeat(TAPS.len()));
     for spec in &args.ceiling {
         let (size, count) = spec.split_once(':').context("--ceiling takes SIZE:LIGHTS")?;
         let (size, count): (u32, u32) = (size.parse()?, count.parse()?);
@@ -539,13 +552,13 @@ fn ceiling_table(gpu: &Gpu, args: &Args, statues: &Statues, map: &EnvironmentMap
         let direct = bake::solve::direct::run(gpu, &scene, &texels, &lights, tpu, &options.solve, &mut |_, _| {})?;
         let stats = direct.stats;
         let batch = direct_batch(gpu, stats.shadow_map_size, options.solve.batch_size);
-        let bare = ceiling::measure(gpu, &scene, &texels.texels, &lights, stats.shadow_map_size, batch)?;
+        let bare = ceiling::measure(gpu, &scene, &texels.texels, &lights, stats.shadow_map_size, batch, &TAPS)?;
         if bare.batches != stats.batches {
             bail!("the bare kernel ran {} batches where the direct pass ran {}", bare.batches, stats.batches);
         }
         let pairs = stats.evaluations as f64;
         println!(
-            "| {size}² | {} | {} | {}² | {batch} | {:.2} | {:.1} | {:.2} | {:.2} | {:.2} | {:.1} | {:.1} | {:.2} | {:.2} |",
+            "| {size}² | {} | {} | {}² | {batch} | {:.2} | {:.1} | {:.2} | {:.2} | {:.2} | {:.1} | {:.1} | {:.2} | {} | {:.2} |",
             texels.texels.len(),
             lights.lights.len(),
             stats.shadow_map_size,
@@ -557,6 +570,7 @@ fn ceiling_table(gpu: &Gpu, args: &Args, statues: &Statues, map: &EnvironmentMap
             pairs / bare.both / 1e6,
             stats.seconds / bare.both,
             bare.empty,
+            bare.filtered.iter().map(|(_, s)| format!("{s:.2}")).collect::<Vec<_>>().join(" | "),
             (cpu_seconds() - cpu) / wall.elapsed().as_secs_f64()
         );
         eprintln!("ceiling {size}²×{count}: real {:.2} s, bare {:.2} s", stats.seconds, bare.both);
@@ -622,6 +636,65 @@ fn direct_once(
     })
 }
 
+/// The bounce pass alone for a fixed number of shots from a uniform start (every texel's L_lm = 1),
+/// as texels and triangles double: what one shot costs (its hemicube sees every triangle, its
+/// gather every texel).
+fn bounce_scaling(gpu: &Gpu) -> Result<()> {
+    const SHOTS: u64 = 256;
+    println!("\n## Scaling of the bounce pass: {SHOTS} shots\n");
+    println!(
+        "`solve::bounce::run` alone, {SHOTS} shots in batches of 32 from a lightmap of 1 everywhere (timing only), \
+         default patches and hemicube size (128²). Pairs: texels × shots.\n"
+    );
+    println!("| run | texels | triangles | patches | bounce (s) | shots/s | M texel·shots/s | cores |");
+    println!("|---|---|---|---|---|---|---|---|");
+    let runs = [(17, 181), (17, 256), (17, 362), (17, 512), (12, 256), (24, 256), (34, 256)];
+    for (frequency, size) in runs {
+        let statues = Statues::new(frequency);
+        let scene = statues.scene()?;
+        let mut options = BakeOptions::default();
+        options.unwrap.max_atlas_size = size;
+        let meshes: Vec<bake::unwrap::MeshInput> = scene
+            .primitives
+            .iter()
+            .map(|p| bake::unwrap::MeshInput { positions: &p.positions, indices: &p.indices })
+            .collect();
+        let atlas = bake::unwrap::run(&meshes, &options.unwrap)?;
+        let texels = bake::texelize::run(gpu, &scene, &atlas)?;
+        let tpu = atlas.texels_per_unit;
+        let patches = bake::solve::patches::build(&texels, options.solve.bounce.patches, 1.0 / tpu);
+        let mut bounce = options.solve.bounce.clone();
+        bounce.max_shots = Some(SHOTS);
+        bounce.tolerance = 0.0;
+        let mut lightmap = vec![[1.0f32; 3]; texels.texels.len()];
+        let (wall, cpu) = (Instant::now(), cpu_seconds());
+        let stats = bake::solve::bounce::run(
+            gpu,
+            &scene,
+            &texels,
+            &patches,
+            &mut lightmap,
+            None,
+            tpu,
+            &bounce,
+            &mut |_, _| {},
+        )?;
+        let cores = (cpu_seconds() - cpu) / wall.elapsed().as_secs_f64();
+        println!(
+            "| atlas {size}², statue frequency {frequency} | {} | {} | {} | {:.2} | {:.1} | {:.1} | {cores:.2} |",
+            texels.texels.len(),
+            scene.triangle_count(),
+            stats.patches,
+            stats.seconds,
+            stats.shots as f64 / stats.seconds,
+            stats.shots as f64 * texels.texels.len() as f64 / stats.seconds / 1e6
+        );
+        eprintln!("bounce scaling {size}² f{frequency}: {:.2} s", stats.seconds);
+    }
+    println!();
+    Ok(())
+}
+
 /// One run of the scaling tables.
 struct Row {
     label: String,
@@ -639,8 +712,9 @@ fn scaling(gpu: &Gpu, map: &EnvironmentMap) -> Result<()> {
         "Direct pass alone (`solve::direct::run`; best of two where a run takes under 20 s) on the three statues, \
          each axis doubled with the others fixed (atlas 256², cube:8 = 384 lights, statue frequency 17, automatic \
          shadow-map size unless the axis says otherwise). \"work\" is texels × lights relative to the first row, \
-         \"time\" the time relative to it; ns/pair is the time per texel·light pair. A row whose time grows more \
-         than 1.3× faster than its work is flagged. Along the triangle axis \"work\" is the triangle count, along the \
+         \"time\" the wall time relative to it and \"CPU\" the CPU time (all threads) relative to it; ns/pair is \
+         the wall time per texel·light pair. The machine is shared, so a row is flagged when its CPU time grows \
+         more than 1.3× faster than its work (wall time also moves with the cores the run got). Along the triangle axis \"work\" is the triangle count, along the \
          shadow-map axis its pixel count (they do not change the pairs).\n"
     );
     let base = Statues::new(TABLE4_STATUE_FREQUENCY);
@@ -685,8 +759,10 @@ fn scaling(gpu: &Gpu, map: &EnvironmentMap) -> Result<()> {
 
     for (axis, rows) in &tables {
         println!("### {axis}\n");
-        println!("| run | texels | lights | triangles | shadow map | direct (s) | ns/pair | work | time | | cores |");
-        println!("|---|---|---|---|---|---|---|---|---|---|---|");
+        println!(
+            "| run | texels | lights | triangles | shadow map | direct (s) | ns/pair | cores | work | time | CPU | |"
+        );
+        println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
         let first = &rows[0];
         for r in rows {
             let work = if axis.starts_with("triangles") {
@@ -697,9 +773,10 @@ fn scaling(gpu: &Gpu, map: &EnvironmentMap) -> Result<()> {
                 (r.texels * r.lights) as f64 / (first.texels * first.lights) as f64
             };
             let time = r.seconds / first.seconds;
-            let flag = if time > 1.3 * work { "super-linear" } else { "" };
+            let cpu = r.seconds * r.cores / (first.seconds * first.cores);
+            let flag = if cpu > 1.3 * work { "super-linear" } else { "" };
             println!(
-                "| {} | {} | {} | {} | {}² | {:.2} | {:.1} | {work:.2} | {time:.2} | {flag} | {:.2} |",
+                "| {} | {} | {} | {} | {}² | {:.2} | {:.1} | {:.2} | {work:.2} | {time:.2} | {cpu:.2} | {flag} |",
                 r.label,
                 r.texels,
                 r.lights,

@@ -31,7 +31,7 @@ struct Params {
     texel_count: u32,
     row_stride: u32,
     tiles_per_row: u32,
-    _p1: u32,
+    taps: u32,
     _p2: u32,
     _p3: u32,
 }
@@ -84,9 +84,22 @@ fn gather(@builtin(global_invocation_id) id: vec3<u32>) {
         let ls = vec3f(dot(d, m[0]), dot(d, m[1]), 0.5 * params.radius - 0.5 * dot(d, w)) / params.radius;
         let pixel = vec2f(ls.x * 0.5 + 0.5, 0.5 - ls.y * 0.5) * size;
         let tile = vec2<i32>(i32(k % params.tiles_per_row), i32(k / params.tiles_per_row)) * i32(size);
-        let stored = textureLoad(depth_maps, vec2<i32>(clamp(floor(pixel), vec2f(0.0), vec2f(size - 1.0))) + tile, 0);
-        if (ls.z <= stored + 1e-4) {
-            sum += light.power.rgb * c;
+        if (params.taps <= 1u) {
+            let stored = textureLoad(depth_maps, vec2<i32>(clamp(floor(pixel), vec2f(0.0), vec2f(size - 1.0))) + tile, 0);
+            if (ls.z <= stored + 1e-4) {
+                sum += light.power.rgb * c;
+            }
+        } else {
+            // A filter of `taps` loads on a spiral two texels wide (percentage-closer filtering).
+            var lit = 0.0;
+            for (var j = 0u; j < params.taps; j++) {
+                let r = 2.0 * sqrt((f32(j) + 0.5) / f32(params.taps));
+                let a = f32(j) * 2.39996323;
+                let at = pixel + r * vec2f(cos(a), sin(a));
+                let stored = textureLoad(depth_maps, vec2<i32>(clamp(floor(at), vec2f(0.0), vec2f(size - 1.0))) + tile, 0);
+                lit += select(0.0, 1.0, ls.z <= stored + 1e-4);
+            }
+            sum += light.power.rgb * c * lit / f32(params.taps);
         }
     }
     irradiance[i] += vec4f(sum, 0.0);
@@ -103,7 +116,8 @@ struct Params {
     texel_count: u32,
     row_stride: u32,
     tiles_per_row: u32,
-    _pad: [u32; 3],
+    taps: u32,
+    _pad: [u32; 2],
 }
 
 #[repr(C)]
@@ -124,11 +138,13 @@ pub struct Bare {
     /// The gather with no lights in each batch: what a batch costs before its first light
     /// (per-texel set-up, read-modify-write of the sum, dispatch and wait).
     pub empty: f64,
+    /// The gather alone with a filter of n depth loads per pair instead of one: (n, seconds).
+    pub filtered: Vec<(u32, f64)>,
     pub batches: usize,
 }
 
 /// Times the bare kernel over `texels` and `lights` with `map_size`² depth maps, `batch`
-/// lights per batch (what the real pass chose).
+/// lights per batch (what the real pass chose), and its gather with filters of `taps` loads.
 pub fn measure(
     gpu: &Gpu,
     scene: &Scene,
@@ -136,6 +152,7 @@ pub fn measure(
     lights: &LightSet,
     map_size: u32,
     batch: u32,
+    taps: &[u32],
 ) -> Result<Bare> {
     let batch = batch.clamp(1, MAX_BATCH as u32);
     let device = &gpu.device;
@@ -177,7 +194,8 @@ pub fn measure(
         texel_count,
         row_stride: groups_x * 64,
         tiles_per_row,
-        _pad: [0; 3],
+        taps: 1,
+        _pad: [0; 2],
     };
     let params_buffer = gpu.uniform_buffer("bare params", &params);
     let lights_buffer = gpu.uniform_buffer("bare lights", &[Light::default(); MAX_BATCH]);
@@ -290,8 +308,9 @@ pub fn measure(
         .collect();
     let index_count = indices.len() as u32;
     // One batch: upload its lights, record what `render` and `gather` ask for, submit, wait.
-    let mut run = |lights: &[Light], light_count: u32, render: bool, gather: bool| -> Result<()> {
+    let mut run = |lights: &[Light], light_count: u32, taps: u32, render: bool, gather: bool| -> Result<()> {
         params.light_count = light_count;
+        params.taps = taps;
         gpu.queue.write_buffer(&params_buffer, 0, bytemuck::bytes_of(&params));
         gpu.queue.write_buffer(&lights_buffer, 0, bytemuck::cast_slice(lights));
         let mut encoder = device.create_command_encoder(&Default::default());
@@ -329,18 +348,22 @@ pub fn measure(
         gpu.wait()
     };
     // Warm up (pipeline compilation on first use), then time each way.
-    run(&chunks[0], chunks[0].len() as u32, true, true)?;
-    let mut time = |render: bool, gather: bool, empty: bool| -> Result<f64> {
+    run(&chunks[0], chunks[0].len() as u32, 1, true, true)?;
+    let mut time = |render: bool, gather: bool, empty: bool, taps: u32| -> Result<f64> {
         let start = Instant::now();
         for chunk in &chunks {
-            run(chunk, if empty { 0 } else { chunk.len() as u32 }, render, gather)?;
+            run(chunk, if empty { 0 } else { chunk.len() as u32 }, taps, render, gather)?;
         }
         Ok(start.elapsed().as_secs_f64())
     };
-    let render = time(true, false, false)?;
-    let gather = time(false, true, false)?;
-    let both = time(true, true, false)?;
-    let empty = time(false, true, true)?;
+    let render = time(true, false, false, 1)?;
+    let gather = time(false, true, false, 1)?;
+    let both = time(true, true, false, 1)?;
+    let empty = time(false, true, true, 1)?;
+    let mut filtered = Vec::new();
+    for &n in taps {
+        filtered.push((n, time(false, true, false, n)?));
+    }
     gpu.check("bare kernel")?;
-    Ok(Bare { render, gather, both, empty, batches: chunks.len() })
+    Ok(Bare { render, gather, both, empty, filtered, batches: chunks.len() })
 }
