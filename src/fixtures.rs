@@ -125,6 +125,111 @@ impl MeshData {
         }
         mesh
     }
+    /// A closed, statue-like blob about 1 m tall standing on y = 0: a geodesic sphere of
+    /// `frequency` (each icosahedron edge cut into that many segments: 10·f² + 2 vertices,
+    /// 20·f² triangles) pushed out into a lumpy, bunny-ish body with two ear-like bulges, its
+    /// lowest 2 % cut flat as a base. `variant` shifts the bumps and the ears, so several
+    /// statues differ. The surface stays star-shaped about its centre, so it never intersects
+    /// itself. A procedural stand-in for the seed paper's scanned bunnies (benchmarks).
+    pub fn statue(frequency: u32, variant: u32) -> MeshData {
+        let mut mesh = MeshData::geodesic_sphere(frequency);
+        let v = variant as f32;
+        let (phase, ear_x, ear_y) = (1.7 * v, 0.30 + 0.08 * v, 0.80 - 0.05 * v);
+        for p in &mut mesh.positions {
+            let [x, y, z] = *p;
+            let bumps = 0.06 * (7.0 * x + 1.3 + phase).sin() * (5.0 * y).cos() * (6.0 * z + 0.7).sin()
+                + 0.03 * (13.0 * x + 17.0 * y + phase).sin() * (11.0 * z).cos()
+                + 0.012 * (31.0 * y + 29.0 * z).sin() * (23.0 * x + phase).cos();
+            let ear = |dx: f32| {
+                let d = (x - dx) * (x - dx) + (y - ear_y) * (y - ear_y) + z * z;
+                0.55 * (-d * 9.0).exp()
+            };
+            let r = 1.0 + bumps + ear(ear_x) + ear(-ear_x);
+            *p = [0.42 * r * x, 0.45 * r * y, 0.35 * r * z];
+        }
+        let (lo, hi) =
+            mesh.positions.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1])));
+        let base = lo + 0.02 * (hi - lo);
+        for p in &mut mesh.positions {
+            p[1] = p[1].max(base) - base;
+        }
+        mesh.normals = vertex_normals(&mesh.positions, &mesh.indices);
+        mesh
+    }
+
+    /// A unit geodesic sphere: the icosahedron with each edge cut into `frequency` segments
+    /// (10·f² + 2 vertices, 20·f² triangles), projected onto the sphere, shared vertices welded,
+    /// counter-clockwise seen from outside. TEXCOORD_0 is each vertex's (longitude, latitude).
+    pub fn geodesic_sphere(frequency: u32) -> MeshData {
+        use std::collections::HashMap;
+        let t = (1.0 + 5.0f32.sqrt()) / 2.0;
+        let mut corners = Vec::new();
+        for (a, b) in [(1.0, t), (-1.0, t), (1.0, -t), (-1.0, -t)] {
+            corners.extend([Vec3::new(a, b, 0.0), Vec3::new(0.0, a, b), Vec3::new(b, 0.0, a)]);
+        }
+        // The 20 faces: triples of corners at mutual distance 2 (the edge length), outward.
+        let edge = |a: usize, b: usize| ((corners[a] - corners[b]).length() - 2.0).abs() < 1e-3;
+        let mut faces = Vec::new();
+        for i in 0..12 {
+            for j in i + 1..12 {
+                for k in j + 1..12 {
+                    if edge(i, j) && edge(j, k) && edge(i, k) {
+                        let (a, b, c) = (corners[i], corners[j], corners[k]);
+                        let outward = (b - a).cross(c - a).dot(a + b + c) > 0.0;
+                        faces.push(if outward { [i, j, k] } else { [i, k, j] });
+                    }
+                }
+            }
+        }
+        let n = frequency.max(1);
+        // A point is keyed by its corners and integer weights (summing to n), so the points
+        // that faces share on edges and corners become one vertex.
+        let mut welded: HashMap<Vec<(usize, u32)>, u32> = HashMap::new();
+        let mut points: Vec<Vec3> = Vec::new();
+        let mut indices = Vec::new();
+        for face in &faces {
+            let mut id = |i: u32, j: u32| -> u32 {
+                let mut key: Vec<(usize, u32)> =
+                    [(face[0], n - i - j), (face[1], i), (face[2], j)].into_iter().filter(|&(_, w)| w > 0).collect();
+                key.sort_unstable();
+                *welded.entry(key).or_insert_with_key(|key| {
+                    points.push(key.iter().map(|&(c, w)| corners[c] * w as f32).sum::<Vec3>().normalize());
+                    points.len() as u32 - 1
+                })
+            };
+            for i in 0..n {
+                for j in 0..n - i {
+                    indices.extend([id(i, j), id(i + 1, j), id(i, j + 1)]);
+                    if i + j + 1 < n {
+                        indices.extend([id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)]);
+                    }
+                }
+            }
+        }
+        let uv = |d: &Vec3| {
+            let u = 0.5 + d.z.atan2(d.x) / std::f32::consts::TAU;
+            [u, d.y.clamp(-1.0, 1.0).acos() / std::f32::consts::PI]
+        };
+        MeshData {
+            positions: points.iter().map(|d| d.to_array()).collect(),
+            normals: points.iter().map(|d| d.to_array()).collect(),
+            uv0: points.iter().map(uv).collect(),
+            indices,
+        }
+    }
+}
+
+/// Area-weighted vertex normals of an indexed triangle mesh.
+fn vertex_normals(positions: &[[f32; 3]], indices: &[u32]) -> Vec<[f32; 3]> {
+    let mut normals = vec![Vec3::ZERO; positions.len()];
+    for tri in indices.chunks_exact(3) {
+        let [a, b, c] = [0, 1, 2].map(|k| Vec3::from(positions[tri[k] as usize]));
+        let n = (b - a).cross(c - a);
+        for &v in tri {
+            normals[v as usize] += n;
+        }
+    }
+    normals.iter().map(|n| n.normalize_or(Vec3::Y).to_array()).collect()
 }
 
 /// A node's placement: translation, rotation, uniform or per-axis scale.
@@ -451,6 +556,30 @@ pub fn sphere_on_ground() -> SceneBuilder {
 pub fn lone_sphere() -> SceneBuilder {
     let mut scene = SceneBuilder::new();
     scene.object("sphere", &MeshData::sphere(1.0, 48, 24), [0.8, 0.8, 0.8, 1.0], [0.0; 3], Placement::default());
+    scene
+}
+
+/// Statue frequency of [`three_statues`] that matches the seed paper's Table 4 scene.
+pub const TABLE4_STATUE_FREQUENCY: u32 = 17;
+
+/// The benchmark scene of the seed paper's Table 4 (three scanned bunny statues, 9,225
+/// vertices in all), procedurally: three [`MeshData::statue`]s of `frequency` (10·f² + 2
+/// vertices and 20·f² triangles each; 2,892 and 5,780 at f = 17) side by side, a hand's
+/// width apart, on a 6 × 6 m ground of 23 × 23 cells (576 vertices): 9,252 vertices and
+/// 18,398 triangles at f = 17. White, red and green statues on grey ground, so light
+/// bounces between them and bleeds colour.
+pub fn three_statues(frequency: u32) -> SceneBuilder {
+    let mut scene = SceneBuilder::new();
+    scene.object("ground", &MeshData::plane(6.0, 6.0, 23), [0.5, 0.5, 0.5, 1.0], [0.0; 3], Placement::default());
+    let statues = [
+        ("statue white", [0.8, 0.78, 0.72, 1.0], Vec3::new(-1.0, 0.0, 0.25), 20.0f32),
+        ("statue red", [0.8, 0.25, 0.2, 1.0], Vec3::new(0.0, 0.0, -0.25), -15.0),
+        ("statue green", [0.3, 0.7, 0.35, 1.0], Vec3::new(1.0, 0.0, 0.25), 35.0),
+    ];
+    for (variant, (name, colour, at, turn)) in statues.into_iter().enumerate() {
+        let placement = Placement::at(at).rotated(Quat::from_rotation_y(turn.to_radians()));
+        scene.object(name, &MeshData::statue(frequency, variant as u32), colour, [0.0; 3], placement);
+    }
     scene
 }
 
