@@ -22,12 +22,46 @@ fn vs_depth(in: CasterIn, @builtin(instance_index) slot: u32) -> CasterOut {
     return out;
 }
 
-@fragment
-fn fs_depth_masked(in: CasterOut) {
+// Whether the fragment falls in a cut-out of its alpha-MASK material.
+fn cut_out(in: CasterOut) -> bool {
     let m = materials[in.material];
     let uv = texture_coordinates(m.base_texture, in.uv0, in.uv1);
     let alpha = m.base_color.a * sample_texture_grad(textures, texture_sampler, m.base_texture, uv, dpdx(uv), dpdy(uv)).a;
-    if (alpha < m.emission.w) {
+    return alpha < m.emission.w;
+}
+
+@fragment
+fn fs_depth_masked(in: CasterOut) {
+    if (cut_out(in)) {
+        discard;
+    }
+}
+
+// The second layer: the nearest surface behind the first (depth peeling).
+// With the first it bounds the solid a shadow ray may pass through: a ray
+// between the two is inside an object (or under a zero-thickness surface,
+// whose second layer is whatever lies below it); a ray deeper than the
+// second passes behind the object, as a ray from the shadow of a post passes
+// beside the post. Drawn with the same vertex shader, so a surface lands on
+// the same depth in both passes and is peeled exactly.
+@group(1) @binding(0) var front_depth: texture_depth_2d;
+
+fn behind_front(position: vec4f) -> bool {
+    return position.z > textureLoad(front_depth, vec2<i32>(position.xy), 0) + 1.0 / params.map_size;
+}
+
+@fragment
+fn fs_depth_peel(in: CasterOut) {
+    if (!behind_front(in.clip)) {
+        discard;
+    }
+}
+
+@fragment
+fn fs_depth_peel_masked(in: CasterOut) {
+    // Derivatives first, while the quad is whole.
+    let cut = cut_out(in);
+    if (cut || !behind_front(in.clip)) {
         discard;
     }
 }

@@ -14,17 +14,30 @@
 // the texel's hemisphere the scene covers: how much of the light it reflects
 // lands on other surfaces. No texel blocked means no surface sees another.
 @group(0) @binding(5) var<storage, read_write> coverage: array<vec2f>;
-// The batch's shadow maps, tiled `tiles_per_row` to a row.
+// The batch's shadow maps, tiled `tiles_per_row` to a row: the first
+// surface along each light, and the nearest surface behind it (the end of
+// the solid a ray entering the first would pass through).
 @group(0) @binding(4) var depth_maps: texture_depth_2d;
+@group(0) @binding(6) var second_layer: texture_depth_2d;
 
 
-// Largest shadow-filter radius, shadow-map texels (about two lightmap
-// texels): wider penumbrae are left to the sum over the other lights. Wider
-// filters measured worse against the reference and, inside closed rooms,
-// let light in past zero-thickness walls.
-const MAX_FILTER: f32 = 4.0;
-const SEARCH_TAPS: u32 = 8u;
-const FILTER_TAPS: u32 = 16u;
+// Longest sideways march of a shadow ray, shadow-map texels: a light
+// so wide that its rays leave the blocker further out than this (cube:4's
+// lights are 0.08 sr) keeps a penumbra this wide, a little too sharp.
+const MAX_MARCH: f32 = 24.0;
+// Blocker-search taps: at least 8, more as the search widens so that taps
+// stay about three shadow-map texels apart, up to 32.
+const MIN_SEARCH_TAPS: u32 = 8u;
+const MAX_SEARCH_TAPS: u32 = 32u;
+// Shadow rays (filter taps) per light where the search found a blocker.
+const MAX_RAYS: u32 = 16u;
+// Widest penumbra the percentage-closer filter takes, shadow-map texels
+// (about two lightmap texels); wider ones are marched.
+const PCF_LIMIT: f32 = 4.0;
+// Spacing of the points tested along a shadow ray, shadow-map texels: a
+// wall seen edge-on is a band a texel or two wide, and a ray must not step
+// over it.
+const MARCH_SPACING: f32 = 1.0;
 
 // Tap j of n on a golden-angle spiral filling the unit disc, turned by
 // `spin` (computed, not read from an array: a CPU driver would keep an
@@ -71,6 +84,13 @@ fn lit_at_depth(at: vec2f, r: Receiver, z: f32) -> bool {
     if (z <= stored + r.bias) {
         return true;
     }
+    return on_receiver_plane(cell, stored, r);
+}
+
+// Whether the surface the depth map holds at texel `cell` (depth `stored`)
+// is the receiver's own plane.
+fn on_receiver_plane(cell: vec2f, stored: f32, r: Receiver) -> bool {
+    let size = params.map_size;
     // Only a plane facing the light can be the receiver seen from it (from
     // behind, a zero-thickness wall stands between them).
     if (!r.front) {
@@ -107,6 +127,40 @@ fn same_slope(mine: vec3f, theirs: vec2f) -> bool {
     return dot(mine, other) >= 0.9 * length(mine) * length(other);
 }
 
+// Whether a shadow ray's point `at` at depth `z` lies inside the solid the
+// depth maps bound there: behind the first surface (and not the receiver's
+// own plane, as `lit_at_depth`) and in front of the second, within the
+// ray's depth step plus the first surface's own depth change across a
+// texel (a ray crossing a thin slab between two points still has one
+// point inside). A point behind the second layer passes behind the
+// object, as a ray from the shadow of a post passes beside the post.
+fn inside_solid(at: vec2f, r: Receiver, z: f32, step_depth: f32) -> bool {
+    let size = params.map_size;
+    let cell = vec2<i32>(clamp(floor(at), vec2f(0.0), vec2f(size - 1.0)));
+    let lo = vec2<i32>(0);
+    let hi = vec2<i32>(i32(size) - 1);
+    let stored = textureLoad(depth_maps, cell + r.tile, 0);
+    let left = textureLoad(depth_maps, max(cell - vec2<i32>(1, 0), lo) + r.tile, 0);
+    let right = textureLoad(depth_maps, min(cell + vec2<i32>(1, 0), hi) + r.tile, 0);
+    let up = textureLoad(depth_maps, max(cell - vec2<i32>(0, 1), lo) + r.tile, 0);
+    let down = textureLoad(depth_maps, min(cell + vec2<i32>(0, 1), hi) + r.tile, 0);
+    // The surface's depth change across a texel, from its smoother side: at
+    // a silhouette the other side is another surface.
+    let across = max(min(abs(right - stored), abs(stored - left)), min(abs(down - stored), abs(stored - up)));
+    // In front of the surface over its whole texel: clear. Within the
+    // texel's depth range (a surface seen at a grazing angle spans many
+    // texels of depth) the point may be on either side: not clear, unless
+    // the surface is the receiver's own plane.
+    if (z <= stored + r.bias - across) {
+        return false;
+    }
+    if (on_receiver_plane(vec2f(cell), stored, r)) {
+        return false;
+    }
+    let back = textureLoad(second_layer, cell + r.tile, 0);
+    return z <= back + step_depth + across + r.bias;
+}
+
 // Depth of the first surface at the centre of the texel holding `at`.
 fn stored_depth(at: vec2f, tile: vec2<i32>) -> f32 {
     let size = params.map_size;
@@ -114,42 +168,78 @@ fn stored_depth(at: vec2f, tile: vec2<i32>) -> f32 {
 }
 
 // How much of a distant light of angular radius atan(tan_alpha) reaches the
-// receiver (percentage-closer soft shadows, Fernando 2005): a blocker search
-// over the largest possible penumbra, then a filter as wide as the penumbra
-// the nearest blocker casts.
+// receiver. A blocker search within PCF_LIMIT texels finds the nearest
+// blocker; where the light is wide enough for its rays to spread further, a
+// second, wider search finds the farthest. Penumbrae up to PCF_LIMIT texels
+// are filtered (percentage-closer soft shadows); wider ones are marched,
+// ray by ray, through both depth layers (`marched_visibility`).
 fn light_visibility(r: Receiver, tan_alpha: f32, spin: f32) -> f32 {
     let size = params.map_size;
-    let depth_to_texels = 2.0 * params.radius * tan_alpha / (2.0 * params.radius / size);
+    // Sideways shadow-map texels a rim ray moves per unit of depth.
+    let depth_to_texels = tan_alpha * size;
     let reach = r.z * depth_to_texels;
     if (reach < 0.75) {
         return select(0.0, 1.0, lit_at(r.pixel, r));
     }
-    let search = min(reach, MAX_FILTER);
-    // The nearest blocker (deepest stored depth) sets the penumbra: an
-    // average would let a far blocker widen the filter of a receiver that a
-    // near one (a wall beside it) already shades, and light would leak in.
-    var blockers = 0.0;
-    var blocker_depth = 0.0;
-    for (var j = 0u; j <= SEARCH_TAPS; j++) {
-        // Tap SEARCH_TAPS is the centre.
-        let at = r.pixel + select(spiral(j, SEARCH_TAPS, spin) * search, vec2f(0.0), j == SEARCH_TAPS);
+    // The nearest blocker (deepest stored depth) within the filter's reach
+    // sets a percentage-closer filter's width.
+    let near_search = min(reach, PCF_LIMIT);
+    var near_blocked = false;
+    var nearest = 0.0;
+    for (var j = 0u; j <= MIN_SEARCH_TAPS; j++) {
+        // Tap MIN_SEARCH_TAPS is the centre.
+        let at = r.pixel + select(spiral(j, MIN_SEARCH_TAPS, spin) * near_search, vec2f(0.0), j == MIN_SEARCH_TAPS);
         if (!lit_at(at, r)) {
-            blockers += 1.0;
-            blocker_depth = max(blocker_depth, stored_depth(at, r.tile));
+            near_blocked = true;
+            nearest = max(nearest, stored_depth(at, r.tile));
         }
     }
-    if (blockers == 0.0) {
-        return 1.0;
+    var span = 0.0;
+    if (reach > PCF_LIMIT) {
+        // The farthest blocker over the widest footprint the light's rays
+        // can have says whether the penumbra is wider than the filter takes.
+        let search = min(reach, MAX_MARCH);
+        let search_taps = clamp(u32(search * search / 3.0), MIN_SEARCH_TAPS, MAX_SEARCH_TAPS);
+        var farthest = r.z;
+        for (var j = 0u; j < search_taps; j++) {
+            let at = r.pixel + spiral(j, search_taps, spin + 2.0) * search;
+            if (!lit_at(at, r)) {
+                farthest = min(farthest, stored_depth(at, r.tile));
+            }
+        }
+        if (near_blocked) {
+            farthest = min(farthest, nearest);
+        }
+        span = (r.z - farthest) * depth_to_texels;
     }
-    let penumbra = clamp((r.z - blocker_depth) * depth_to_texels, 0.5, MAX_FILTER);
+    // A blocker close enough for a narrow penumbra (a contact, a wall
+    // beside the receiver) keeps the filter: its taps are sealed against
+    // walls seen edge-on, which matters most there.
+    let nearest_span = (r.z - nearest) * depth_to_texels;
+    if (span <= PCF_LIMIT || (near_blocked && nearest_span <= PCF_LIMIT)) {
+        if (!near_blocked) {
+            return 1.0;
+        }
+        return filtered_visibility(r, nearest_span, nearest, spin);
+    }
+    return marched_visibility(r, min(span, MAX_MARCH), depth_to_texels, spin);
+}
+
+// Percentage-closer soft shadows (Fernando 2005), for penumbrae at most
+// PCF_LIMIT texels wide: a filter as wide as the penumbra the nearest
+// blocker (deepest stored depth) casts. The nearest, not an average: an
+// average would let a far blocker widen the filter of a receiver that a
+// near one (a wall beside it) already shades, and light would leak in.
+fn filtered_visibility(r: Receiver, nearest_span: f32, blocker_depth: f32, spin: f32) -> f32 {
+    let penumbra = clamp(nearest_span, 0.5, PCF_LIMIT);
     // Each tap stands for a ray from the receiver that reaches the blocker's
     // depth at the tap: it must clear what lies on its way there too. (The
     // tap alone would see past a floor seen edge-on, a band a texel or two
-    // wide, into a sealed room; with taps at most MAX_FILTER texels out,
+    // wide, into a sealed room; with taps at most PCF_LIMIT texels out,
     // three points on the way are a texel apart.)
     var lit = 0.0;
-    for (var j = 0u; j < FILTER_TAPS; j++) {
-        let offset = spiral(j, FILTER_TAPS, spin + 1.0) * penumbra;
+    for (var j = 0u; j < MAX_RAYS; j++) {
+        let offset = spiral(j, MAX_RAYS, spin + 1.0) * penumbra;
         if (lit_at(r.pixel + offset, r)
             && lit_at_depth(r.pixel + 0.25 * offset, r, mix(r.z, blocker_depth, 0.25))
             && lit_at_depth(r.pixel + 0.5 * offset, r, mix(r.z, blocker_depth, 0.5))
@@ -157,7 +247,36 @@ fn light_visibility(r: Receiver, tan_alpha: f32, spin: f32) -> f32 {
             lit += 1.0;
         }
     }
-    return lit / f32(FILTER_TAPS);
+    return lit / f32(MAX_RAYS);
+}
+
+// Wider penumbrae: rays spread over the light's disc are marched through
+// both depth layers from the receiver to the farthest blocker's depth
+// (nearer, if the march would leave MAX_MARCH), each lit if no point of it
+// lies inside a solid. A long blocker (a post) then gives each ray the depth
+// it meets, and a ray from the middle of its shadow may pass behind it: the
+// penumbra widens away from the contact and the core lightens, as they do.
+fn marched_visibility(r: Receiver, span: f32, depth_to_texels: f32, spin: f32) -> f32 {
+    let end_depth = r.z - span / depth_to_texels;
+    var lit = 0.0;
+    for (var j = 0u; j < MAX_RAYS; j++) {
+        let offset = spiral(j, MAX_RAYS, spin + 1.0) * span;
+        let steps = max(2u, u32(ceil(length(offset) / MARCH_SPACING)));
+        let step_depth = (r.z - end_depth) / f32(steps);
+        // From the receiver itself (a surface just above it, such as the
+        // side of a box it stands under, is crossed before the first step).
+        var clear = true;
+        for (var s = 0u; s < steps && clear; s++) {
+            let t = f32(s) / f32(steps);
+            clear = !inside_solid(r.pixel + t * offset, r, mix(r.z, end_depth, t), step_depth);
+        }
+        // The last point sees, along the light's own direction, all that
+        // lies beyond the blockers the search found.
+        if (clear && lit_at_depth(r.pixel + offset, r, end_depth)) {
+            lit += 1.0;
+        }
+    }
+    return lit / f32(MAX_RAYS);
 }
 
 // Shadow-map position (pixels) and depth of world point `q` for the light

@@ -304,6 +304,20 @@ pub fn texture_array_entry(binding: u32, stages: wgpu::ShaderStages) -> wgpu::Bi
     }
 }
 
+/// A bind-group-layout entry for a depth texture read with `textureLoad`.
+pub fn depth_texture_entry(binding: u32, stages: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: stages,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Depth,
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
 /// A bind-group-layout entry for a filtering sampler.
 pub fn sampler_entry(binding: u32, stages: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {

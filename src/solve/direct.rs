@@ -23,7 +23,7 @@ use crate::texelize::TexelSet;
 
 /// Lights per batch the uniform array holds (`MAX_BATCH` in common.wgsl).
 const MAX_BATCH: u32 = 256;
-/// Memory the shadow-map array of one batch may take.
+/// Memory the shadow maps of one batch (two depth layers each) may take.
 const DEPTH_BUDGET_BYTES: u64 = 128 << 20;
 
 /// Receivers test a point this far off their surface, in shadow-map texels
@@ -139,7 +139,8 @@ pub fn run(
         .shadow_map_size
         .unwrap_or_else(|| auto_shadow_map_size(radius, texels_per_unit, gpu.limits.max_texture_dimension_2d))
         .min(gpu.limits.max_texture_dimension_2d);
-    let per_map = size as u64 * size as u64 * 4;
+    // Two layers per light: the first surface and the one behind it.
+    let per_map = size as u64 * size as u64 * 4 * 2;
     let batch = (DEPTH_BUDGET_BYTES / per_map)
         .clamp(1, MAX_BATCH as u64)
         .min(options.batch_size.clamp(1, MAX_BATCH) as u64)
@@ -180,19 +181,29 @@ pub fn run(
     );
     let tiles_per_row = (batch as f64).sqrt().ceil() as u32;
     let tile_rows = batch.div_ceil(tiles_per_row);
-    let depth = gpu.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("solve_depth maps"),
-        size: wgpu::Extent3d { width: size * tiles_per_row, height: size * tile_rows, depth_or_array_layers: 1 },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Depth32Float,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-        view_formats: &[],
-    });
-    let array_view = depth.create_view(&Default::default());
+    let depth_atlas = |label| {
+        gpu.device
+            .create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width: size * tiles_per_row,
+                    height: size * tile_rows,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::Depth32Float,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            })
+            .create_view(&Default::default())
+    };
+    // The first surface along each light, and the nearest one behind it.
+    let front_view = depth_atlas("solve_depth maps");
+    let behind_view = depth_atlas("solve_depth second layer");
 
-    let both = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::COMPUTE;
+    let both = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE;
     let [materials_entry, textures_entry, sampler_entry] = Casters::layout_entries(2);
     let depth_layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("solve_depth"),
@@ -236,6 +247,38 @@ pub fn run(
         Some("fs_depth_masked"),
     );
 
+    // The second layer's pass reads the first layer.
+    let front_layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("solve_depth peel"),
+        entries: &[gpu::depth_texture_entry(0, wgpu::ShaderStages::FRAGMENT)],
+    });
+    let front_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("solve_depth peel"),
+        layout: &front_layout,
+        entries: &[wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(&front_view) }],
+    });
+    let peel_pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("solve_depth peel"),
+        bind_group_layouts: &[Some(&depth_layout), Some(&front_layout)],
+        immediate_size: 0,
+    });
+    let peel_opaque_pipeline = Casters::pipeline(
+        gpu,
+        "solve_depth peel",
+        &peel_pipeline_layout,
+        &depth_module,
+        "vs_depth",
+        Some("fs_depth_peel"),
+    );
+    let peel_masked_pipeline = Casters::pipeline(
+        gpu,
+        "solve_depth peel masked",
+        &peel_pipeline_layout,
+        &depth_module,
+        "vs_depth",
+        Some("fs_depth_peel_masked"),
+    );
+
     let compute = wgpu::ShaderStages::COMPUTE;
     let gather_layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("solve_direct"),
@@ -247,18 +290,11 @@ pub fn run(
             gpu::storage_entry(2, true, compute),
             gpu::storage_entry(3, false, compute),
             // 4: the batch's depth maps
-            wgpu::BindGroupLayoutEntry {
-                binding: 4,
-                visibility: compute,
-                ty: wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Depth,
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                    multisampled: false,
-                },
-                count: None,
-            },
+            gpu::depth_texture_entry(4, compute),
             // 5: blocked and total Ω cos θ per texel (accumulated)
             gpu::storage_entry(5, false, compute),
+            // 6: the surfaces behind the first ones
+            gpu::depth_texture_entry(6, compute),
         ],
     });
     let gather_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -269,8 +305,9 @@ pub fn run(
             wgpu::BindGroupEntry { binding: 1, resource: lights_buffer.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 2, resource: texel_buffer.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 3, resource: irradiance.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&array_view) },
+            wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&front_view) },
             wgpu::BindGroupEntry { binding: 5, resource: coverage.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 6, resource: wgpu::BindingResource::TextureView(&behind_view) },
         ],
     });
     let gather_pipeline = gpu.compute_pipeline(Shader::SolveDirect, "main", &[&gather_layout]);
@@ -292,12 +329,12 @@ pub fn run(
         gpu.queue.write_buffer(&params_buffer, 0, bytemuck::bytes_of(&params));
         gpu.queue.write_buffer(&lights_buffer, 0, bytemuck::cast_slice(&slots));
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        {
+        for (view, second) in [(&front_view, false), (&behind_view, true)] {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("solve_depth"),
+                label: Some(if second { "solve_depth second layer" } else { "solve_depth" }),
                 color_attachments: &[],
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &array_view,
+                    view,
                     depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
                     stencil_ops: None,
                 }),
@@ -306,11 +343,19 @@ pub fn run(
                 multiview_mask: None,
             });
             pass.set_bind_group(0, &depth_group, &[]);
+            if second {
+                pass.set_bind_group(1, &front_group, &[]);
+            }
             casters.bind(&mut pass);
+            let (opaque, masked) = if second {
+                (&peel_opaque_pipeline, &peel_masked_pipeline)
+            } else {
+                (&opaque_pipeline, &masked_pipeline)
+            };
             for slot in 0..chunk.len() as u32 {
                 let (tx, ty) = (slot % tiles_per_row, slot / tiles_per_row);
                 pass.set_viewport((tx * size) as f32, (ty * size) as f32, size as f32, size as f32, 0.0, 1.0);
-                casters.draw(&mut pass, &opaque_pipeline, &masked_pipeline, slot);
+                casters.draw(&mut pass, opaque, masked, slot);
             }
         }
         {
