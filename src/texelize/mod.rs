@@ -20,7 +20,8 @@ use crate::unwrap::Atlas;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
 pub struct Texel {
-    /// World position (metres): the texel centre's nearest point on its triangle.
+    /// Position in scene coordinates (metres, world − `Scene::origin`): the
+    /// texel centre's nearest point on its triangle.
     pub position: [f32; 3],
     /// World area (m²) of the surface inside the texel's square; zero for
     /// texels that only border a chart.
