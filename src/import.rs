@@ -15,6 +15,7 @@ use glam::{DMat3, DMat4, DVec3};
 use gltf::mesh::Mode;
 
 use crate::asset::{SourceAsset, accessor};
+use crate::repeats;
 use crate::scene::{AlphaMode, LinearImage, Material, Scene, ScenePrimitive, TextureRef, choose_origin};
 
 /// Loads `path` (`.gltf` or `.glb`) into a `Scene`. Errors name the file.
@@ -53,7 +54,7 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
     if gathered.is_empty() {
         bail!("the scene has no triangle geometry to bake");
     }
-    let (origin, primitives) = rebase(gathered)?;
+    let (origin, primitives) = finish_primitives(gathered, &mut notices)?;
 
     let materials: Vec<Material> = document.materials().map(material).collect();
     let mut used: Vec<usize> = primitives.iter().filter_map(|p| p.material).collect();
@@ -94,9 +95,10 @@ struct Gathered {
     what: String,
 }
 
-/// Chooses the scene's origin from the f64 world bounds and stores every
-/// position relative to it in f32.
-fn rebase(gathered: Vec<Gathered>) -> Result<([f64; 3], Vec<ScenePrimitive>)> {
+/// Chooses the scene's origin from the f64 world bounds, stores every
+/// position relative to it in f32, and finds each primitive's repeated
+/// triangles (with a notice).
+fn finish_primitives(gathered: Vec<Gathered>, notices: &mut Vec<String>) -> Result<([f64; 3], Vec<ScenePrimitive>)> {
     let mut points = gathered.iter().flat_map(|g| g.world.iter().copied());
     let first = points.next().unwrap_or(DVec3::ZERO);
     let (lo, hi) = points.fold((first, first), |(lo, hi), p| (lo.min(p), hi.max(p)));
@@ -106,6 +108,15 @@ fn rebase(gathered: Vec<Gathered>) -> Result<([f64; 3], Vec<ScenePrimitive>)> {
         primitive.positions = world.iter().map(|&p| (p - origin).as_vec3().to_array()).collect();
         if let Some(i) = primitive.positions.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
             bail!("{what}: vertex {i} is beyond f32's range from the scene's origin: the node transform overflows");
+        }
+        primitive.repeats = repeats::find(&primitive.positions, &primitive.indices);
+        if !primitive.repeats.is_empty() {
+            notices.push(format!(
+                "{what}: {} of its {} triangles repeat another of its triangles (same corners, same facing): \
+                 each copy shares the first one's lightmap texels",
+                primitive.repeats.len(),
+                primitive.triangle_count()
+            ));
         }
         primitives.push(primitive);
     }
@@ -204,8 +215,9 @@ fn collect_mesh(
                 node: node.index(),
                 mesh: mesh.index(),
                 primitive: primitive.index(),
-                // Filled in by `rebase` once the scene's origin is known.
+                // Filled in by `finish_primitives` once the scene's origin is known.
                 positions: Vec::new(),
+                repeats: Vec::new(),
                 normals,
                 uv0,
                 uv1,

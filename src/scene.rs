@@ -10,6 +10,7 @@
 use glam::{DVec3, Vec3};
 
 use crate::asset::SourceAsset;
+use crate::repeats::Repeat;
 
 /// One glTF primitive as drawn by one node: the unit that gets lightmap space.
 #[derive(Clone, Debug)]
@@ -33,6 +34,9 @@ pub struct ScenePrimitive {
     /// Triangle list in source vertex numbering (strips and fans converted),
     /// in the source's winding.
     pub indices: Vec<u32>,
+    /// Triangles that repeat an earlier one of this primitive (same corners,
+    /// same facing), in order: they share its lightmap texels (see `repeats`).
+    pub repeats: Vec<Repeat>,
     /// The node's transform has a negative determinant, so the winding that
     /// faces front is reversed in world space.
     pub mirrored: bool,

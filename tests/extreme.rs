@@ -191,6 +191,12 @@ fn degenerate_triangles_and_bad_normals_bake_without_nan() {
             }),
         ),
     ];
+    // The plain plane's own covered texels: broken geometry added to it must
+    // not cost it lightmap resolution. (Listing every triangle twice once
+    // cut 1936 texels to 128: each copy got a chart of its own.)
+    let plain = common::bake(&gpu, &plane_with(|_| {}), &lights, &common::options(48));
+    let plain_texels = common::values_of(&plain, 0).iter().filter(|(t, _)| t.area > 0.0).count();
+    eprintln!("plain plane: {plain_texels} texels");
     for (what, edit) in cases {
         let baked = common::bake(&gpu, &plane_with(edit), &lights, &common::options(48));
         let values: Vec<f32> = common::values_of(&baked, 0).iter().filter(|(t, _)| t.area > 0.0).map(|v| v.1).collect();
@@ -198,6 +204,25 @@ fn degenerate_triangles_and_bad_normals_bake_without_nan() {
         let low = values.iter().cloned().fold(f32::MAX, f32::min);
         eprintln!("{what}: {} texels, mean L_lm {mean:.4}, lowest {low:.4}", values.len());
         assert!((mean - 1.0).abs() < 0.02, "{what}: mean L_lm {mean}, expected 1");
+        let ratio = values.len() as f64 / plain_texels as f64;
+        assert!((ratio - 1.0).abs() < 0.01, "{what}: {} covered texels, the plain plane {plain_texels}", values.len());
+        if what == "duplicate coplanar faces" {
+            // plane(2, 2, 4): 4×4 cells of 2 triangles, each listed twice.
+            let notice = baked.notices.iter().find(|n| n.contains("repeat another of its triangles"));
+            let notice = notice.unwrap_or_else(|| panic!("no notice of the repeats: {:?}", baked.notices));
+            assert!(notice.contains("mesh 0 'plane'") && notice.contains("primitive 0"), "{notice}");
+            assert!(notice.contains("32 of its 64 triangles"), "{notice}");
+            eprintln!("note: {notice}");
+            // The copies lie on the first ones' texels: the plain plane's lightmap.
+            let texel_values = |b: &bake::Baked| -> Vec<(u32, f32)> {
+                common::values_of(b, 0).iter().map(|(t, v)| (t.index, *v)).collect()
+            };
+            let (got, plain) = (texel_values(&baked), texel_values(&plain));
+            assert_eq!(got.len(), plain.len());
+            for ((i, a), (j, b)) in got.iter().zip(&plain) {
+                assert!(i == j && (a - b).abs() <= 1e-4 * b.abs(), "texel {i}: {a}, the plain plane's {j}: {b}");
+            }
+        }
     }
 }
 
