@@ -71,7 +71,9 @@ fn stage<T>(
     let start = Instant::now();
     let probe = MemoryProbe::start(Some(gpu));
     progress.stage(scene, name);
-    let (value, summary) = f(progress)?;
+    gpu.enter_stage(name);
+    // On a lost device every GPU call fails in its own words: say what happened instead.
+    let (value, summary) = f(progress).map_err(|e| gpu.lost_error(name).unwrap_or(e))?;
     progress.finish(&summary);
     let memory = probe.and_then(|p| p.finish(Some(gpu)));
     stages.push(StageTime { stage: name.to_string(), seconds: start.elapsed().as_secs_f64(), memory });
