@@ -3,15 +3,20 @@
 //! transforms applied, with its material. What cannot be baked (points,
 //! lines, skinned or morphing meshes) is left out with a notice, never
 //! silently.
+//!
+//! Transforms are composed and applied in f64 and positions stored in f32
+//! relative to `Scene::origin` (see `scene::choose_origin`): f32 world
+//! coordinates 100 km out are 8 mm apart, too coarse for shadow tests.
 
 use std::path::Path;
 
 use anyhow::{Context, Result, anyhow, bail};
-use glam::{Mat3, Mat4, Vec3};
+use glam::{DMat3, DMat4, DVec3};
 use gltf::mesh::Mode;
 
 use crate::asset::{SourceAsset, accessor};
-use crate::scene::{AlphaMode, LinearImage, Material, Scene, ScenePrimitive, TextureRef};
+use crate::repeats;
+use crate::scene::{AlphaMode, LinearImage, Material, Scene, ScenePrimitive, TextureRef, choose_origin};
 
 /// Loads `path` (`.gltf` or `.glb`) into a `Scene`. Errors name the file.
 pub fn load(path: &Path) -> Result<Scene> {
@@ -28,8 +33,8 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
         .ok_or_else(|| anyhow!("the file has no scene to bake"))?;
 
     let mut notices = Vec::new();
-    let mut primitives = Vec::new();
-    let mut stack: Vec<(gltf::Node, Mat4)> = gltf_scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
+    let mut gathered = Vec::new();
+    let mut stack: Vec<(gltf::Node, DMat4)> = gltf_scene.nodes().map(|n| (n, DMat4::IDENTITY)).collect();
     stack.reverse();
     let mut visits = 0usize;
     while let Some((node, parent)) = stack.pop() {
@@ -37,17 +42,19 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
         if visits > document.nodes().len() * 4 + 16 {
             bail!("the node hierarchy has a cycle");
         }
-        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        let local = node.transform().matrix().map(|column| column.map(f64::from));
+        let world = parent * DMat4::from_cols_array_2d(&local);
         if let Some(mesh) = node.mesh() {
-            collect_mesh(&source, &node, &mesh, world, &mut primitives, &mut notices)?;
+            collect_mesh(&source, &node, &mesh, world, &mut gathered, &mut notices)?;
         }
         for child in node.children().collect::<Vec<_>>().into_iter().rev() {
             stack.push((child, world));
         }
     }
-    if primitives.is_empty() {
+    if gathered.is_empty() {
         bail!("the scene has no triangle geometry to bake");
     }
+    let (origin, primitives) = finish_primitives(gathered, &mut notices)?;
 
     let materials: Vec<Material> = document.materials().map(material).collect();
     let mut used: Vec<usize> = primitives.iter().filter_map(|p| p.material).collect();
@@ -72,7 +79,7 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
         ));
     }
     let name = source.path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "scene".into());
-    Ok(Scene { name, source, primitives, materials, images, notices })
+    Ok(Scene { name, source, origin, primitives, materials, images, notices })
 }
 
 fn describe(node: &gltf::Node, mesh: &gltf::Mesh) -> String {
@@ -81,12 +88,47 @@ fn describe(node: &gltf::Node, mesh: &gltf::Mesh) -> String {
     format!("mesh {}{mesh_name} on node {}{node_name}", mesh.index(), node.index())
 }
 
+/// A primitive as read, with its world positions in f64 until the scene's origin is known.
+struct Gathered {
+    primitive: ScenePrimitive,
+    world: Vec<DVec3>,
+    what: String,
+}
+
+/// Chooses the scene's origin from the f64 world bounds, stores every
+/// position relative to it in f32, and finds each primitive's repeated
+/// triangles (with a notice).
+fn finish_primitives(gathered: Vec<Gathered>, notices: &mut Vec<String>) -> Result<([f64; 3], Vec<ScenePrimitive>)> {
+    let mut points = gathered.iter().flat_map(|g| g.world.iter().copied());
+    let first = points.next().unwrap_or(DVec3::ZERO);
+    let (lo, hi) = points.fold((first, first), |(lo, hi), p| (lo.min(p), hi.max(p)));
+    let origin = choose_origin(lo, hi);
+    let mut primitives = Vec::with_capacity(gathered.len());
+    for Gathered { mut primitive, world, what } in gathered {
+        primitive.positions = world.iter().map(|&p| (p - origin).as_vec3().to_array()).collect();
+        if let Some(i) = primitive.positions.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
+            bail!("{what}: vertex {i} is beyond f32's range from the scene's origin: the node transform overflows");
+        }
+        primitive.repeats = repeats::find(&primitive.positions, &primitive.indices);
+        if !primitive.repeats.is_empty() {
+            notices.push(format!(
+                "{what}: {} of its {} triangles repeat another of its triangles (same corners, same facing): \
+                 each copy shares the first one's lightmap texels",
+                primitive.repeats.len(),
+                primitive.triangle_count()
+            ));
+        }
+        primitives.push(primitive);
+    }
+    Ok((origin.to_array(), primitives))
+}
+
 fn collect_mesh(
     source: &SourceAsset,
     node: &gltf::Node,
     mesh: &gltf::Mesh,
-    world: Mat4,
-    primitives: &mut Vec<ScenePrimitive>,
+    world: DMat4,
+    gathered: &mut Vec<Gathered>,
     notices: &mut Vec<String>,
 ) -> Result<()> {
     let what = describe(node, mesh);
@@ -94,8 +136,8 @@ fn collect_mesh(
         notices.push(format!("{what} is skinned (not static): left out of the bake"));
         return Ok(());
     }
-    let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
-    let mirrored = Mat3::from_mat4(world).determinant() < 0.0;
+    let normal_matrix = DMat3::from_mat4(world).inverse().transpose();
+    let mirrored = DMat3::from_mat4(world).determinant() < 0.0;
     for primitive in mesh.primitives() {
         let what = format!("{what}, primitive {}", primitive.index());
         if primitive.morph_targets().len() > 0 {
@@ -111,15 +153,15 @@ fn collect_mesh(
             notices.push(format!("{what} has no POSITION attribute: left out of the bake"));
             continue;
         };
-        let read = || -> Result<ScenePrimitive> {
+        let read = || -> Result<Gathered> {
             let local = accessor::read_vectors::<3>(source, &position_accessor)?;
             if let Some(i) = local.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
                 bail!("POSITION {i} is not finite ({:?})", local[i]);
             }
             let count = local.len();
-            let positions: Vec<[f32; 3]> =
-                local.iter().map(|&p| world.transform_point3(Vec3::from(p)).to_array()).collect();
-            if let Some(i) = positions.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
+            let world: Vec<DVec3> =
+                local.iter().map(|&p| world.transform_point3(DVec3::from(p.map(f64::from)))).collect();
+            if let Some(i) = world.iter().position(|p| !p.is_finite()) {
                 bail!("world position of vertex {i} is not finite: the node transform overflows");
             }
             let normals = match primitive.get(&gltf::Semantic::Normals) {
@@ -132,9 +174,9 @@ fn collect_mesh(
                         local
                             .iter()
                             .map(|&n| {
-                                let n = normal_matrix * Vec3::from(n);
+                                let n = normal_matrix * DVec3::from(n.map(f64::from));
                                 // Zero, NaN or infinite normals fall back to the face normal later.
-                                n.try_normalize().unwrap_or(Vec3::ZERO).to_array()
+                                n.try_normalize().unwrap_or(DVec3::ZERO).as_vec3().to_array()
                             })
                             .collect(),
                     )
@@ -169,25 +211,28 @@ fn collect_mesh(
                 bail!("index {bad} is past the vertex count {count}");
             }
             let indices = triangle_list(mode, &drawn);
-            Ok(ScenePrimitive {
+            let baked = ScenePrimitive {
                 node: node.index(),
                 mesh: mesh.index(),
                 primitive: primitive.index(),
-                positions,
+                // Filled in by `finish_primitives` once the scene's origin is known.
+                positions: Vec::new(),
+                repeats: Vec::new(),
                 normals,
                 uv0,
                 uv1,
                 indices,
                 mirrored,
                 material: primitive.material().index(),
-            })
+            };
+            Ok(Gathered { primitive: baked, world, what: what.clone() })
         };
-        let scene_primitive = read().with_context(|| what.clone())?;
-        if scene_primitive.indices.is_empty() {
+        let read = read().with_context(|| what.clone())?;
+        if read.primitive.indices.is_empty() {
             notices.push(format!("{what} has no triangles: left out of the bake"));
             continue;
         }
-        primitives.push(scene_primitive);
+        gathered.push(read);
     }
     Ok(())
 }

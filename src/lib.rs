@@ -21,6 +21,7 @@ pub mod output;
 pub mod plot;
 pub mod progress;
 pub mod reference;
+pub mod repeats;
 pub mod report;
 pub mod scene;
 pub mod solve;
@@ -70,7 +71,9 @@ fn stage<T>(
     let start = Instant::now();
     let probe = MemoryProbe::start(Some(gpu));
     progress.stage(scene, name);
-    let (value, summary) = f(progress)?;
+    gpu.enter_stage(name);
+    // On a lost device every GPU call fails in its own words: say what happened instead.
+    let (value, summary) = f(progress).map_err(|e| gpu.lost_error(name).unwrap_or(e))?;
     progress.finish(&summary);
     let memory = probe.and_then(|p| p.finish(Some(gpu)));
     stages.push(StageTime { stage: name.to_string(), seconds: start.elapsed().as_secs_f64(), memory });
@@ -105,13 +108,16 @@ pub fn bake_scene(
     let mut stages = Vec::new();
     let mut notices = scene.notices.clone();
     let (atlas, uv1_reused) = stage(gpu, progress, &mut stages, &name, "unwrap", |_| {
+        // Repeated triangles share their first copy's UVs: unwrap without them, then put them back.
+        let unique: Vec<Vec<u32>> = scene.primitives.iter().map(|p| repeats::without(&p.indices, &p.repeats)).collect();
         let meshes: Vec<unwrap::MeshInput> = scene
             .primitives
             .iter()
-            .map(|p| unwrap::MeshInput { positions: &p.positions, indices: &p.indices })
+            .zip(&unique)
+            .map(|(p, indices)| unwrap::MeshInput { positions: &p.positions, indices })
             .collect();
         let kept = options.keep_uv1.then(|| existing_uv1(&scene, &meshes, &options.unwrap));
-        let (atlas, reused) = match kept {
+        let (mut atlas, reused) = match kept {
             Some(Ok(atlas)) => (atlas, true),
             Some(Err(why)) => {
                 let mut atlas = unwrap::run(&meshes, &options.unwrap).context("unwrap")?;
@@ -120,6 +126,10 @@ pub fn bake_scene(
             }
             None => (unwrap::run(&meshes, &options.unwrap).context("unwrap")?, false),
         };
+        let unwrapped = std::mem::take(&mut atlas.meshes);
+        atlas.meshes = (scene.primitives.iter().zip(unwrapped))
+            .map(|(p, mesh)| repeats::restore(&p.indices, &p.repeats, mesh))
+            .collect();
         let summary = format!(
             "{}×{} atlas, {} charts, {:.0}% used, {:.3} texels/m",
             atlas.width,

@@ -2,10 +2,15 @@
 //! triangle geometry in world space (glTF's: right-handed, +Y up, metres)
 //! with the material facts the solver needs, plus the source asset that
 //! export rewrites.
+//!
+//! Positions are stored relative to `Scene::origin` (world = origin +
+//! position), so a scene far from glTF's origin keeps f32 precision; every
+//! stage after import works in these scene coordinates.
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 use crate::asset::SourceAsset;
+use crate::repeats::Repeat;
 
 /// One glTF primitive as drawn by one node: the unit that gets lightmap space.
 #[derive(Clone, Debug)]
@@ -15,7 +20,8 @@ pub struct ScenePrimitive {
     /// Index of the glTF mesh and of the primitive within it.
     pub mesh: usize,
     pub primitive: usize,
-    /// World-space positions (metres), one per source vertex, in source order.
+    /// Positions in scene coordinates (metres, world minus `Scene::origin`),
+    /// one per source vertex, in source order.
     pub positions: Vec<[f32; 3]>,
     /// World-space unit normals, one per source vertex, if the source has them
     /// (otherwise flat normals are used, as glTF prescribes).
@@ -28,6 +34,9 @@ pub struct ScenePrimitive {
     /// Triangle list in source vertex numbering (strips and fans converted),
     /// in the source's winding.
     pub indices: Vec<u32>,
+    /// Triangles that repeat an earlier one of this primitive (same corners,
+    /// same facing), in order: they share its lightmap texels (see `repeats`).
+    pub repeats: Vec<Repeat>,
     /// The node's transform has a negative determinant, so the winding that
     /// faces front is reversed in world space.
     pub mirrored: bool,
@@ -123,6 +132,10 @@ pub struct Scene {
     /// Output stem (the input's file name without extension).
     pub name: String,
     pub source: SourceAsset,
+    /// Where scene coordinates are zero, in world coordinates (metres): every
+    /// position (of primitives, texels, reference points) is world − origin.
+    /// Zero for a scene near the world origin (see `choose_origin`).
+    pub origin: [f64; 3],
     pub primitives: Vec<ScenePrimitive>,
     /// One per glTF material, index for index.
     pub materials: Vec<Material>,
@@ -138,7 +151,7 @@ impl Scene {
         primitive.material.and_then(|m| self.materials.get(m).cloned()).unwrap_or_default()
     }
 
-    /// Axis-aligned bounds of all baked geometry, or `None` when there is none.
+    /// Axis-aligned bounds of all baked geometry in scene coordinates, or `None` when there is none.
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
         let mut points = self.primitives.iter().flat_map(|p| p.positions.iter().map(|&v| Vec3::from(v)));
         let first = points.next()?;
@@ -147,5 +160,61 @@ impl Scene {
 
     pub fn triangle_count(&self) -> usize {
         self.primitives.iter().map(ScenePrimitive::triangle_count).sum()
+    }
+}
+
+/// The scene origin for geometry whose world bounds are `lo`..`hi`.
+///
+/// A scene within a few of its sizes of the world origin keeps it (scene
+/// coordinates are world coordinates, and f32 loses at most 3 bits there).
+/// A farther one gets its bounds' centre rounded to a multiple of a power of
+/// two at least twice its largest side: exact in f32 and f64, and every
+/// position ends up within 2.5 sizes of zero.
+pub fn choose_origin(lo: DVec3, hi: DVec3) -> DVec3 {
+    /// How many sizes from the world origin a scene's centre may be and keep it.
+    const NEAR: f64 = 4.0;
+    let centre = (lo + hi) * 0.5;
+    let size = (hi - lo).max_element();
+    if !centre.is_finite() || !size.is_finite() {
+        return DVec3::ZERO;
+    }
+    if centre.abs().max_element() <= NEAR * size {
+        return DVec3::ZERO;
+    }
+    if size <= 0.0 {
+        return centre;
+    }
+    let step = (2.0 * size).log2().ceil().exp2();
+    (centre / step).round() * step
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_scene_near_the_world_origin_keeps_it() {
+        assert_eq!(choose_origin(DVec3::new(-0.1, 0.0, -2.0), DVec3::new(3.0, 1.0, 0.5)), DVec3::ZERO);
+        // A 2 m sphere 2 m up: not around the origin, but near it.
+        assert_eq!(choose_origin(DVec3::new(-1.0, 1.0, -1.0), DVec3::new(1.0, 3.0, 1.0)), DVec3::ZERO);
+    }
+
+    #[test]
+    fn a_far_scene_gets_an_origin_near_its_centre() {
+        let (lo, hi) = (DVec3::new(1e5 - 2.0, 0.3, -1e5 - 2.0), DVec3::new(1e5 + 2.3, 2.0, -1e5 + 2.0));
+        let origin = choose_origin(lo, hi);
+        let size = (hi - lo).max_element();
+        for corner in [lo, hi] {
+            assert!((corner - origin).abs().max_element() <= 2.5 * size, "{corner} from {origin}");
+        }
+        // A multiple of a power of two: exact in f64 and f32.
+        assert_eq!(origin, DVec3::new(1e5, 0.0, -1e5));
+    }
+
+    #[test]
+    fn a_point_far_away_is_its_own_origin_and_overflow_falls_back_to_zero() {
+        let p = DVec3::new(1e7, 3.5, -2.25);
+        assert_eq!(choose_origin(p, p), p);
+        assert_eq!(choose_origin(DVec3::splat(-f64::MAX), DVec3::splat(f64::MAX)), DVec3::ZERO);
     }
 }

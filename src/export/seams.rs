@@ -67,7 +67,9 @@ pub fn find(scene: &Scene, atlas: &Atlas) -> Vec<SeamEdge> {
     // World end points (exact bits, smaller first) → the edges' sides.
     let mut sides: BTreeMap<([u32; 3], [u32; 3]), Vec<EdgeSide>> = BTreeMap::new();
     for (primitive, mesh) in scene.primitives.iter().zip(&atlas.meshes) {
-        for triangle in mesh.indices.chunks_exact(3) {
+        // A repeated triangle lies on its first copy's texels: one side, not two.
+        let repeat = crate::repeats::mask(&primitive.repeats, mesh.indices.len() / 3);
+        for (_, triangle) in mesh.indices.chunks_exact(3).enumerate().filter(|(t, _)| !repeat[*t]) {
             let corners = [0, 1, 2].map(|k| mesh.vertices[triangle[k] as usize]);
             if corners.iter().any(|v| v.chart == u32::MAX) {
                 continue;

@@ -47,9 +47,18 @@ pub struct Gpu {
     pub limits: wgpu::Limits,
     /// Validation, out-of-memory and device-lost messages not yet reported.
     errors: Arc<Mutex<Vec<String>>>,
+    /// Why the device was lost, once it is: every later GPU call fails.
+    lost: Arc<Mutex<Option<String>>>,
+    /// The stage whose first wait destroys the device (`BAKE_TEST_LOSE_DEVICE`).
+    lose_at: Option<String>,
+    /// The stage running now, for the test hook.
+    stage: Mutex<String>,
     /// Largest allocator total seen by `wait` since `take_memory_peak` (bytes).
     memory_peak: AtomicU64,
 }
+
+/// Environment variable of the device-loss test hook (see `Gpu::wait`).
+pub const LOSE_DEVICE_HOOK: &str = "BAKE_TEST_LOSE_DEVICE";
 
 /// Features every bake needs. FLOAT32_BLENDABLE: texelization sums each
 /// texel's exact covered area with additive blending into an R32Float target.
@@ -121,18 +130,54 @@ impl Gpu {
             };
             sink.lock().unwrap().push(message);
         }));
-        let sink = errors.clone();
+        // Only the test hook destroys the device (dropping it does not call
+        // this), so `Destroyed` is a loss like any other here.
+        let lost = Arc::new(Mutex::new(None));
+        let sink = lost.clone();
         device.set_device_lost_callback(move |reason, message| {
-            if reason != wgpu::DeviceLostReason::Destroyed {
-                sink.lock().unwrap().push(format!("GPU device lost ({reason:?}): {message}"));
-            }
+            let why = match (reason, message.trim()) {
+                (wgpu::DeviceLostReason::Destroyed, _) => "destroyed".to_string(),
+                (_, "") => format!("{reason:?}"),
+                (_, message) => one_line(message),
+            };
+            sink.lock().unwrap().get_or_insert(why);
         });
-        Ok(Gpu { device, queue, adapter: description, limits, errors, memory_peak: AtomicU64::new(0) })
+        Ok(Gpu {
+            device,
+            queue,
+            adapter: description,
+            limits,
+            errors,
+            lost,
+            lose_at: std::env::var(LOSE_DEVICE_HOOK).ok().filter(|s| !s.is_empty()),
+            stage: Mutex::new(String::new()),
+            memory_peak: AtomicU64::new(0),
+        })
+    }
+
+    /// Why the device was lost, or `None` while it works.
+    pub fn lost(&self) -> Option<String> {
+        self.lost.lock().unwrap().clone()
+    }
+
+    /// The error for work of `stage` on a lost device: one line, the stage and
+    /// the adapter named, instead of whatever the failing call said.
+    pub fn lost_error(&self, stage: &str) -> Option<anyhow::Error> {
+        let why = self.lost()?;
+        Some(anyhow::anyhow!("{stage}: GPU device lost on {} ({why})", self.adapter.name))
+    }
+
+    /// Marks the start of pipeline stage `name` (for the device-loss test hook).
+    pub fn enter_stage(&self, name: &str) {
+        *self.stage.lock().unwrap() = name.to_string();
     }
 
     /// Waits for submitted work and turns any GPU error raised so far into an
     /// error naming `stage`. Call at the end of each stage.
     pub fn check(&self, stage: &str) -> Result<()> {
+        if let Some(error) = self.lost_error(stage) {
+            return Err(error);
+        }
         self.wait()?;
         let errors = std::mem::take(&mut *self.errors.lock().unwrap());
         match errors.first() {
@@ -146,13 +191,31 @@ impl Gpu {
         }
     }
 
-    /// Blocks until all submitted work has finished.
+    /// Blocks until all submitted work has finished. Once the device is lost
+    /// it fails at once instead of waiting, and a wait during which the device
+    /// is lost fails too.
     pub fn wait(&self) -> Result<()> {
+        let lost = || self.lost().map(|why| anyhow::anyhow!("GPU device lost ({why})"));
+        if let Some(error) = lost() {
+            return Err(error);
+        }
+        self.lose_device_if_asked();
         self.sample_memory();
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map(|_| ())
-            .map_err(|e| anyhow::anyhow!("GPU wait failed: {e}"))
+        let waited = self.device.poll(wgpu::PollType::wait_indefinitely());
+        if let Some(error) = lost() {
+            return Err(error);
+        }
+        waited.map(|_| ()).map_err(|e| anyhow::anyhow!("GPU wait failed: {e}"))
+    }
+
+    /// The test hook: `BAKE_TEST_LOSE_DEVICE=<stage>` (a stage that uses the
+    /// GPU: texelize or solve) destroys the device at that stage's first wait,
+    /// with its work in flight, as a driver reset or unplugged GPU would.
+    /// Tests use it to check that a bake then fails cleanly.
+    fn lose_device_if_asked(&self) {
+        if self.lose_at.as_deref().is_some_and(|at| *self.stage.lock().unwrap() == at) {
+            self.device.destroy();
+        }
     }
 
     /// Bytes of GPU memory wgpu's allocator holds for live buffers and

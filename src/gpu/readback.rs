@@ -25,8 +25,10 @@ pub fn read_buffer<T: bytemuck::Pod>(gpu: &Gpu, buffer: &wgpu::Buffer, count: us
         let _ = sender.send(result);
     });
     gpu.wait()?;
+    // A completed wait has run every callback of the work it waited for:
+    // nothing here means the mapping was dropped, and blocking would hang.
     receiver
-        .recv()
+        .try_recv()
         .map_err(|_| anyhow!("GPU read-back was abandoned"))?
         .map_err(|e| anyhow!("GPU read-back failed: {e}"))?;
     let data = staging.slice(..).get_mapped_range().map_err(|e| anyhow!("GPU read-back failed: {e:?}"))?;

@@ -121,7 +121,8 @@ impl Default for ReferenceOptions {
 /// A point at which to estimate the lightmap value.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ReferencePoint {
-    /// World position, metres (on a surface or anywhere in space).
+    /// Position in the scene's coordinates (world − `Scene::origin`), metres,
+    /// on a surface or anywhere in space.
     pub position: [f32; 3],
     /// Unit world normal of the receiving side: light arriving from the
     /// hemisphere it points into is gathered. Need not be exactly unit (it is

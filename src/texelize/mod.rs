@@ -20,7 +20,8 @@ use crate::unwrap::Atlas;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
 pub struct Texel {
-    /// World position (metres): the texel centre's nearest point on its triangle.
+    /// Position in scene coordinates (metres, world − `Scene::origin`): the
+    /// texel centre's nearest point on its triangle.
     pub position: [f32; 3],
     /// World area (m²) of the surface inside the texel's square; zero for
     /// texels that only border a chart.
@@ -31,7 +32,8 @@ pub struct Texel {
     pub index: u32,
     /// Unit geometric normal of the texel's triangle, on the shading normal's side.
     pub face_normal: [f32; 3],
-    /// Global triangle id (primitives in scene order, triangles in order).
+    /// Global triangle id (primitives in scene order, triangles in order,
+    /// repeated triangles left out).
     pub triangle: u32,
     /// Diffuse albedo, linear RGB.
     pub albedo: [f32; 3],
@@ -136,14 +138,17 @@ fn flatten(scene: &Scene, atlas: &Atlas) -> Mesh {
         let material = primitive.material.map_or(default_material, |m| m as u32);
         // Edges used by one triangle only are chart borders (the unwrap splits
         // vertices along seams, so a shared edge shares its vertex indices).
+        // Repeated triangles share their first copy's texels: they are left out here.
+        let repeat = crate::repeats::mask(&primitive.repeats, unwrapped.indices.len() / 3);
+        let triangles = || unwrapped.indices.chunks_exact(3).enumerate().filter(|(t, _)| !repeat[*t]);
         let mut edge_uses: std::collections::HashMap<(u32, u32), u32> = std::collections::HashMap::new();
-        for corner in unwrapped.indices.chunks_exact(3) {
+        for (_, corner) in triangles() {
             for k in 0..3 {
                 let (a, b) = (corner[k], corner[(k + 1) % 3]);
                 *edge_uses.entry((a.min(b), a.max(b))).or_default() += 1;
             }
         }
-        for (t, corner) in unwrapped.indices.chunks_exact(3).enumerate() {
+        for (t, corner) in triangles() {
             let border_edges = (0..3)
                 .filter(|&k| {
                     let (a, b) = (corner[k], corner[(k + 1) % 3]);
