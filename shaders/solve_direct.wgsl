@@ -194,6 +194,12 @@ fn light_visibility(r: Receiver, tan_alpha: f32, spin: f32) -> f32 {
             nearest = max(nearest, stored_depth(at, r.tile));
         }
     }
+    if (!near_blocked) {
+        // Nothing shades the receiver's neighbourhood. (A wide search alone
+        // would count the receiver's own plane, far out at a grazing angle,
+        // as a blocker.)
+        return 1.0;
+    }
     var span = 0.0;
     if (reach > PCF_LIMIT) {
         // The farthest blocker over the widest footprint the light's rays
@@ -207,19 +213,14 @@ fn light_visibility(r: Receiver, tan_alpha: f32, spin: f32) -> f32 {
                 farthest = min(farthest, stored_depth(at, r.tile));
             }
         }
-        if (near_blocked) {
-            farthest = min(farthest, nearest);
-        }
+        farthest = min(farthest, nearest);
         span = (r.z - farthest) * depth_to_texels;
     }
     // A blocker close enough for a narrow penumbra (a contact, a wall
     // beside the receiver) keeps the filter: its taps are sealed against
     // walls seen edge-on, which matters most there.
     let nearest_span = (r.z - nearest) * depth_to_texels;
-    if (span <= PCF_LIMIT || (near_blocked && nearest_span <= PCF_LIMIT)) {
-        if (!near_blocked) {
-            return 1.0;
-        }
+    if (span <= PCF_LIMIT || nearest_span <= PCF_LIMIT) {
         return filtered_visibility(r, nearest_span, nearest, spin);
     }
     return marched_visibility(r, min(span, MAX_MARCH), depth_to_texels, spin);
