@@ -191,6 +191,21 @@ impl Gpu {
         }
     }
 
+    /// A depth texture that is drawn into and then read by shaders
+    /// (shadow maps, hemicubes).
+    pub fn depth_target(&self, label: &str, width: u32, height: u32) -> wgpu::Texture {
+        self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Depth32Float,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        })
+    }
+
     /// Blocks until all submitted work has finished. Once the device is lost
     /// it fails at once instead of waiting, and a wait during which the device
     /// is lost fails too.

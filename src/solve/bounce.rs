@@ -459,16 +459,7 @@ fn resources(
     tile_rows: u32,
 ) -> Resources {
     let none = wgpu::BufferUsages::empty();
-    let depth = gpu.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("solve_hemicube depth"),
-        size: wgpu::Extent3d { width: 3 * face * tiles_per_row, height: face * tile_rows, depth_or_array_layers: 1 },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Depth32Float,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-        view_formats: &[],
-    });
+    let depth = gpu.depth_target("solve_hemicube depth", 3 * face * tiles_per_row, face * tile_rows);
     let lightmap4: Vec<[f32; 4]> = lightmap.iter().map(|l| [l[0], l[1], l[2], 0.0]).collect();
     Resources {
         params: gpu.uniform_buffer("solve_shoot params", &params),

@@ -181,24 +181,8 @@ pub fn run(
     );
     let tiles_per_row = (batch as f64).sqrt().ceil() as u32;
     let tile_rows = batch.div_ceil(tiles_per_row);
-    let depth_atlas = |label| {
-        gpu.device
-            .create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width: size * tiles_per_row,
-                    height: size * tile_rows,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::Depth32Float,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-                view_formats: &[],
-            })
-            .create_view(&Default::default())
-    };
+    let depth_atlas =
+        |label| gpu.depth_target(label, size * tiles_per_row, size * tile_rows).create_view(&Default::default());
     // The first surface along each light, and the nearest one behind it.
     let front_view = depth_atlas("solve_depth maps");
     let behind_view = depth_atlas("solve_depth second layer");
