@@ -109,15 +109,23 @@ fn on_receiver_plane(cell: vec2f, stored: f32, r: Receiver) -> bool {
     // surface meeting it (a floor under a wall): their depths agree along
     // the line where they meet. The stored surface's slope on both sides of
     // this texel must be the receiver's: at such a junction one side is not.
-    let lo = vec2f(0.0);
-    let hi = vec2f(size - 1.0);
-    let left = textureLoad(depth_maps, vec2<i32>(clamp(cell - vec2f(1.0, 0.0), lo, hi)) + r.tile, 0);
-    let right = textureLoad(depth_maps, vec2<i32>(clamp(cell + vec2f(1.0, 0.0), lo, hi)) + r.tile, 0);
-    let up = textureLoad(depth_maps, vec2<i32>(clamp(cell - vec2f(0.0, 1.0), lo, hi)) + r.tile, 0);
-    let down = textureLoad(depth_maps, vec2<i32>(clamp(cell + vec2f(0.0, 1.0), lo, hi)) + r.tile, 0);
+    let n = neighbour_depths(vec2<i32>(cell), r.tile);
     let mine = vec3f(r.slope * size, -1.0);
-    return same_slope(mine, vec2f(right - stored, down - stored) * size)
-        && same_slope(mine, vec2f(stored - left, stored - up) * size);
+    return same_slope(mine, vec2f(n.y - stored, n.w - stored) * size)
+        && same_slope(mine, vec2f(stored - n.x, stored - n.z) * size);
+}
+
+// First-layer depths of the texels left, right, above and below `cell`
+// (clamped to the map), as x, y, z, w.
+fn neighbour_depths(cell: vec2<i32>, tile: vec2<i32>) -> vec4f {
+    let lo = vec2<i32>(0);
+    let hi = vec2<i32>(i32(params.map_size) - 1);
+    return vec4f(
+        textureLoad(depth_maps, max(cell - vec2<i32>(1, 0), lo) + tile, 0),
+        textureLoad(depth_maps, min(cell + vec2<i32>(1, 0), hi) + tile, 0),
+        textureLoad(depth_maps, max(cell - vec2<i32>(0, 1), lo) + tile, 0),
+        textureLoad(depth_maps, min(cell + vec2<i32>(0, 1), hi) + tile, 0),
+    );
 }
 
 // Whether a stored surface with depth slope `theirs` (per texel, scaled to
@@ -137,16 +145,11 @@ fn same_slope(mine: vec3f, theirs: vec2f) -> bool {
 fn inside_solid(at: vec2f, r: Receiver, z: f32, step_depth: f32) -> bool {
     let size = params.map_size;
     let cell = vec2<i32>(clamp(floor(at), vec2f(0.0), vec2f(size - 1.0)));
-    let lo = vec2<i32>(0);
-    let hi = vec2<i32>(i32(size) - 1);
     let stored = textureLoad(depth_maps, cell + r.tile, 0);
-    let left = textureLoad(depth_maps, max(cell - vec2<i32>(1, 0), lo) + r.tile, 0);
-    let right = textureLoad(depth_maps, min(cell + vec2<i32>(1, 0), hi) + r.tile, 0);
-    let up = textureLoad(depth_maps, max(cell - vec2<i32>(0, 1), lo) + r.tile, 0);
-    let down = textureLoad(depth_maps, min(cell + vec2<i32>(0, 1), hi) + r.tile, 0);
+    let n = neighbour_depths(cell, r.tile);
     // The surface's depth change across a texel, from its smoother side: at
     // a silhouette the other side is another surface.
-    let across = max(min(abs(right - stored), abs(stored - left)), min(abs(down - stored), abs(stored - up)));
+    let across = max(min(abs(n.y - stored), abs(stored - n.x)), min(abs(n.w - stored), abs(stored - n.z)));
     // In front of the surface over its whole texel: clear. Within the
     // texel's depth range (a surface seen at a grazing angle spans many
     // texels of depth) the point may be on either side: not clear, unless

@@ -173,16 +173,7 @@ pub fn measure(
 
     let tiles_per_row = (batch as f64).sqrt().ceil() as u32;
     let rows = batch.div_ceil(tiles_per_row);
-    let depth = device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("bare depth"),
-        size: wgpu::Extent3d { width: map_size * tiles_per_row, height: map_size * rows, depth_or_array_layers: 1 },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Depth32Float,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-        view_formats: &[],
-    });
+    let depth = gpu.depth_target("bare depth", map_size * tiles_per_row, map_size * rows);
     let depth_view = depth.create_view(&Default::default());
     let texel_count = texels.len() as u32;
     let (groups_x, groups_y) = gpu.dispatch_size(texel_count, 64);
