@@ -153,7 +153,7 @@ struct BounceParams {
     near: f32,             // near plane, metres
     receiver_offset: f32,  // receivers test a point this far along their face normal, metres
     max_slope: f32,
-    _pad0: u32,
+    chunk_count: u32,      // workgroups of MEASURE_CHUNK texels in the measure pass
     _pad1: u32,
 }
 
@@ -297,4 +297,5 @@ struct CasterOut {
     @location(1) @interpolate(flat) material: u32,
     @location(2) uv0: vec2f,
     @location(3) uv1: vec2f,
+    @location(4) @interpolate(flat) face: u32,     // hemicube face (hemicubes)
 }

@@ -35,22 +35,42 @@ fn vs_hemicube(in: CasterIn, @builtin(instance_index) instance: u32) -> CasterOu
     out.material = in.material;
     out.uv0 = in.uv0;
     out.uv1 = in.uv1;
+    out.face = face;
+    return out;
+}
+
+// Depth, and whether the shooter sees the surface's front: light that lands
+// on a back face reaches no texel, so the form factors' normalization
+// (solve_shoot's `finish`) must not count it as caught.
+struct HemicubeOut {
+    @builtin(frag_depth) depth: f32,
+    @location(0) front: vec4f,
+}
+
+fn hemicube_out(in: CasterOut, front_facing: bool) -> HemicubeOut {
+    // Faces 0, 1 and 4 project with a mirror (their clip-space map has a
+    // positive determinant while looking along +w), so the rasterizer's
+    // counter-clockwise "front" is the surface's back there.
+    let mirrored = in.face == 0u || in.face == 1u || in.face == 4u;
+    var out: HemicubeOut;
+    out.depth = clamp(length(in.local) / params.far, 0.0, 1.0);
+    out.front = vec4f(select(0.0, 1.0, front_facing != mirrored));
     return out;
 }
 
 @fragment
-fn fs_hemicube(in: CasterOut) -> @builtin(frag_depth) f32 {
-    return clamp(length(in.local) / params.far, 0.0, 1.0);
+fn fs_hemicube(in: CasterOut, @builtin(front_facing) front_facing: bool) -> HemicubeOut {
+    return hemicube_out(in, front_facing);
 }
 
 // Alpha-MASK triangles: cut-out fragments let light through.
 @fragment
-fn fs_hemicube_masked(in: CasterOut) -> @builtin(frag_depth) f32 {
+fn fs_hemicube_masked(in: CasterOut, @builtin(front_facing) front_facing: bool) -> HemicubeOut {
     let m = materials[in.material];
     let uv = texture_coordinates(m.base_texture, in.uv0, in.uv1);
     let alpha = m.base_color.a * sample_texture_grad(textures, texture_sampler, m.base_texture, uv, dpdx(uv), dpdy(uv)).a;
     if (alpha < m.emission.w) {
         discard;
     }
-    return clamp(length(in.local) / params.far, 0.0, 1.0);
+    return hemicube_out(in, front_facing);
 }

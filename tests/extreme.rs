@@ -305,9 +305,18 @@ fn uniform_room(rho: f32, le: f32) -> SceneBuilder {
     builder
 }
 
-/// Bakes the ρ = 0.99 room (Le = 1, so L = Le/(1 − ρ) = 100) with a bounded
-/// run; returns the area-weighted mean L_lm, the brightest texel and the stats.
-fn nearly_white_room() -> (f64, f64, bake::solve::BounceStats) {
+/// What the ρ = 0.99 room (Le = 1, so L = Le/(1 − ρ) = 100) bakes to when
+/// stopped after 2000 shots, far from converged.
+struct NearlyWhiteRoom {
+    /// Area-weighted mean L_lm.
+    mean: f64,
+    /// The darkest and brightest covered texels.
+    darkest: f64,
+    brightest: f64,
+    bounce: bake::solve::BounceStats,
+}
+
+fn nearly_white_room() -> NearlyWhiteRoom {
     let gpu = common::gpu();
     let (rho, le) = (0.99f32, 1.0f32);
     let mut options = common::options(64);
@@ -315,51 +324,61 @@ fn nearly_white_room() -> (f64, f64, bake::solve::BounceStats) {
     let scene = common::scene(&uniform_room(rho, le), "room");
     let baked = bake::bake_scene(&gpu, scene, None, &options, &mut Silent).unwrap();
     common::assert_valid(&baked);
-    let (mut sum, mut area, mut brightest) = (0.0f64, 0.0f64, 0.0f64);
-    for (t, v) in baked.texels.texels.iter().zip(&baked.solution.lightmap) {
+    let (mut sum, mut area, mut brightest, mut darkest) = (0.0f64, 0.0f64, 0.0f64, f64::MAX);
+    for (t, v) in baked.texels.texels.iter().zip(&baked.solution.lightmap).filter(|(t, _)| t.area > 0.0) {
         sum += v[0] as f64 * t.area as f64;
         area += t.area as f64;
         brightest = brightest.max(v[0] as f64);
+        darkest = darkest.min(v[0] as f64);
     }
     let mean = sum / area;
     let bounce = baked.solution.bounce.clone().expect("the bounce pass ran");
     eprintln!(
-        "ρ = {rho}: {} shots ({}), unshot {:.4}, closure {:.4}, ambient {:.3}, error estimate {:.3}; \
-         mean L_lm {mean:.3}, brightest {brightest:.3} (expected {})",
+        "ρ = {rho}: {} shots ({}), unshot {:.4}, closure {:.4} (shots {:.5}), ambient {:.3}, error estimate {:.3}; \
+         mean L_lm {mean:.3}, darkest {darkest:.3}, brightest {brightest:.3} (expected {})",
         bounce.shots,
         bounce.stopped_by,
         bounce.unshot_fraction,
         bounce.closure,
+        bounce.shot_closure,
         bounce.ambient[0],
         bounce.trace.last().map_or(0.0, |t| t.error_estimate),
         le / (1.0 - rho)
     );
-    (mean, brightest, bounce)
+    NearlyWhiteRoom { mean, darkest, brightest, bounce }
 }
 
 #[test]
 fn a_nearly_white_closed_room_stays_bounded_and_reports_its_error() {
     // Stopped long before its light is all shot, the solve must stay finite
-    // (checked in `nearly_white_room`), never exceed the converged answer,
-    // say it stopped early, and claim no smaller error than it has.
+    // (checked in `nearly_white_room`), keep every texel within 5 % of the
+    // converged answer (the ambient term stands in for the rest), say it
+    // stopped early, and claim no smaller error than it has.
     let expected = 100.0;
-    let (mean, brightest, bounce) = nearly_white_room();
-    assert!(brightest <= 1.02 * expected, "a texel has {brightest}, above the converged {expected}");
-    assert_eq!(bounce.stopped_by, "max shots");
-    assert!(bounce.unshot_fraction > 0.5, "unshot {}", bounce.unshot_fraction);
-    let estimate = bounce.trace.last().unwrap().error_estimate;
-    let actual = (expected - mean).abs() / mean;
+    let room = nearly_white_room();
+    assert!(room.brightest <= 1.05 * expected, "a texel has {}, above the converged {expected}", room.brightest);
+    assert!(room.darkest >= 0.95 * expected, "a texel has {}, below the converged {expected}", room.darkest);
+    assert_eq!(room.bounce.stopped_by, "max shots");
+    assert!(room.bounce.unshot_fraction > 0.5, "unshot {}", room.bounce.unshot_fraction);
+    let estimate = room.bounce.trace.last().unwrap().error_estimate;
+    let actual = (expected - room.mean).abs() / room.mean;
     assert!(estimate >= actual, "the report estimates {estimate:.3} but the mean is off by {actual:.3}");
 }
 
 #[test]
-#[ignore = "fails: mean L_lm 19.7 for 100 (ρ = 0.99, 2000 shots, unshot 0.90, closure 0.961); see NOTE-issue9.md"]
 fn a_nearly_white_closed_room_reaches_le_over_one_minus_rho() {
-    // The ambient term U·f/(A(1 − ρ f)) uses the measured closure f = 0.961
-    // (4% of the shot power lost by the form factors' discretisation) where a
-    // closed room's is 1: at ρ = 0.99 that makes 1/(1 − ρ f) 20 instead of 100.
-    let (mean, _, _) = nearly_white_room();
-    assert!((mean / 100.0 - 1.0).abs() < 0.05, "mean L_lm {mean}, expected 100");
+    // Each shot must deliver all of its light to a closed room: a loss of
+    // 1 − f per bounce makes the answer 1/(1 − ρ f) instead of 1/(1 − ρ), and
+    // at ρ = 0.99 the 4 % the discretized form factors once lost made it 20
+    // instead of 100. Normalized per shooter against its hemicube, the shots
+    // deliver the covered share (1 here), and so does the ambient term.
+    let room = nearly_white_room();
+    assert!(
+        (room.bounce.shot_closure - 1.0).abs() < 1e-3,
+        "shots delivered {} of their light",
+        room.bounce.shot_closure
+    );
+    assert!((room.mean / 100.0 - 1.0).abs() < 0.05, "mean L_lm {}, expected 100", room.mean);
 }
 
 #[test]

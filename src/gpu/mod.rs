@@ -194,13 +194,18 @@ impl Gpu {
     /// A depth texture that is drawn into and then read by shaders
     /// (shadow maps, hemicubes).
     pub fn depth_target(&self, label: &str, width: u32, height: u32) -> wgpu::Texture {
+        self.render_target(label, width, height, wgpu::TextureFormat::Depth32Float)
+    }
+
+    /// A 2D texture a render pass writes and a later pass reads.
+    pub fn render_target(&self, label: &str, width: u32, height: u32, format: wgpu::TextureFormat) -> wgpu::Texture {
         self.device.create_texture(&wgpu::TextureDescriptor {
             label: Some(label),
             size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
             mip_level_count: 1,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Depth32Float,
+            format,
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
             view_formats: &[],
         })
@@ -384,11 +389,20 @@ pub fn texture_array_entry(binding: u32, stages: wgpu::ShaderStages) -> wgpu::Bi
 
 /// A bind-group-layout entry for a depth texture read with `textureLoad`.
 pub fn depth_texture_entry(binding: u32, stages: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+    texture_2d_entry(binding, stages, wgpu::TextureSampleType::Depth)
+}
+
+/// A bind-group-layout entry for a 2-D texture read with `textureLoad`.
+pub fn texture_2d_entry(
+    binding: u32,
+    stages: wgpu::ShaderStages,
+    sample_type: wgpu::TextureSampleType,
+) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: stages,
         ty: wgpu::BindingType::Texture {
-            sample_type: wgpu::TextureSampleType::Depth,
+            sample_type,
             view_dimension: wgpu::TextureViewDimension::D2,
             multisampled: false,
         },

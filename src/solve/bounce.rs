@@ -9,6 +9,13 @@
 //! (`solve_shoot`). Only a 64-byte summary comes back per batch, to decide
 //! whether to stop and to record the convergence trace.
 //!
+//! The first time a patch shoots, its form factors are normalized: the
+//! `measure` and `finish` entry points of `solve_shoot` sum them over every
+//! receiver and compare the sum with the share of its hemicube that sees a
+//! surface's front, and the patch's shots are scaled by the ratio from then
+//! on. So a closed room catches exactly what is shot, which a near-white
+//! room needs (a 4 % loss per bounce made ρ = 0.99 come out 5× too dark).
+//!
 //! A run stopped by a budget still answers honestly: the light not yet shot
 //! is spread as an ambient term (Cohen et al.'s, scaled by the measured share
 //! of shot light the scene catches), and the report says how much it was.
@@ -27,6 +34,13 @@ use crate::texelize::TexelSet;
 
 /// Shooter slots per batch (`MAX_SHOOTERS` in solve_shoot.wgsl).
 pub const MAX_SHOOTERS: u32 = 64;
+
+/// Texels one workgroup of the form-factor measure pass sums
+/// (`MEASURE_CHUNK` in solve_shoot.wgsl).
+const MEASURE_CHUNK: u32 = 4096;
+
+/// Hemicube companion target: 1 where the shooter sees a surface's front.
+const FRONT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 
 /// Options of the bounce pass, with their defaults.
 #[derive(Clone, Debug)]
@@ -146,7 +160,8 @@ struct BounceParams {
     near: f32,
     receiver_offset: f32,
     max_slope: f32,
-    _pad: [u32; 2],
+    chunk_count: u32,
+    _pad: u32,
 }
 
 /// Mirrors `Shooter` in common.wgsl.
@@ -196,7 +211,12 @@ struct Resources {
     chosen: wgpu::Buffer,
     shooters: wgpu::Buffer,
     stats: wgpu::Buffer,
+    /// Per patch: the scale of its form factors, 0 until it first shoots.
+    patch_scale: wgpu::Buffer,
+    /// Per shooter slot and texel chunk: the measure pass's sums.
+    partials: wgpu::Buffer,
     depth_view: wgpu::TextureView,
+    front_view: wgpu::TextureView,
     casters: Casters,
 }
 
@@ -205,6 +225,9 @@ struct Pipelines {
     select: (wgpu::ComputePipeline, wgpu::BindGroup),
     /// Opaque and alpha-cut-out casters, and their bind group.
     hemicube: (wgpu::RenderPipeline, wgpu::RenderPipeline, wgpu::BindGroup),
+    /// The form-factor normalization (measure, finish) and the shots; one bind group.
+    measure: wgpu::ComputePipeline,
+    finish: wgpu::ComputePipeline,
     shoot: (wgpu::ComputePipeline, wgpu::BindGroup),
 }
 
@@ -279,7 +302,8 @@ pub fn run(
         // Half a lightmap texel: off the surface, well inside any occluder.
         receiver_offset: 0.5 * texel_world,
         max_slope: 10.0,
-        _pad: [0; 2],
+        chunk_count: (texels.texels.len() as u32).div_ceil(MEASURE_CHUNK).max(1),
+        _pad: 0,
     };
     let patch_params = BounceParams { row_stride: patch_groups_x * 64, ..params };
 
@@ -341,6 +365,11 @@ pub fn run(
         render_hemicubes(&mut encoder, &pipelines, &resources, shooter_count, face, tiles_per_row);
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_bind_group(0, &pipelines.shoot.1, &[]);
+            pass.set_pipeline(&pipelines.measure);
+            pass.dispatch_workgroups(params.chunk_count, shooter_count, 1);
+            pass.set_pipeline(&pipelines.finish);
+            pass.dispatch_workgroups(shooter_count, 1, 1);
             pass.set_pipeline(&pipelines.shoot.0);
             pass.set_bind_group(0, &pipelines.shoot.1, &[]);
             pass.dispatch_workgroups(groups_x, groups_y, 1);
@@ -460,6 +489,7 @@ fn resources(
 ) -> Resources {
     let none = wgpu::BufferUsages::empty();
     let depth = gpu.depth_target("solve_hemicube depth", 3 * face * tiles_per_row, face * tile_rows);
+    let front = gpu.render_target("solve_hemicube front", 3 * face * tiles_per_row, face * tile_rows, FRONT_FORMAT);
     let lightmap4: Vec<[f32; 4]> = lightmap.iter().map(|l| [l[0], l[1], l[2], 0.0]).collect();
     Resources {
         params: gpu.uniform_buffer("solve_shoot params", &params),
@@ -474,7 +504,14 @@ fn resources(
         chosen: gpu.storage_buffer("solve_select chosen", &vec![0u32; patches.patches.len()], none),
         shooters: gpu.storage_buffer("solve_select shooters", &[Shooter::default(); MAX_SHOOTERS as usize], none),
         stats: gpu.storage_buffer("solve_select stats", &[GpuStats::default()], wgpu::BufferUsages::COPY_SRC),
+        patch_scale: gpu.storage_buffer("solve_shoot patch scales", &vec![0f32; patches.patches.len().max(1)], none),
+        partials: gpu.storage_buffer(
+            "solve_shoot measured sums",
+            &vec![0f32; (MAX_SHOOTERS * params.chunk_count) as usize],
+            none,
+        ),
         depth_view: depth.create_view(&Default::default()),
+        front_view: front.create_view(&Default::default()),
         casters: Casters::new(gpu, scene),
     }
 }
@@ -568,16 +605,12 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             gpu::storage_entry(4, false, compute),
             gpu::storage_entry(5, false, compute),
             // 6: the batch's hemicube depth atlas
-            wgpu::BindGroupLayoutEntry {
-                binding: 6,
-                visibility: compute,
-                ty: wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Depth,
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                    multisampled: false,
-                },
-                count: None,
-            },
+            gpu::depth_texture_entry(6, compute),
+            // 7: per-patch form-factor scales, 8: the measure pass's sums
+            gpu::storage_entry(7, false, compute),
+            gpu::storage_entry(8, false, compute),
+            // 9: where the hemicubes see a surface's front
+            gpu::texture_2d_entry(9, compute, wgpu::TextureSampleType::Float { filterable: false }),
         ],
     );
     let shoot_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -591,10 +624,14 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             wgpu::BindGroupEntry { binding: 4, resource: r.lightmap.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 5, resource: r.unshot.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 6, resource: wgpu::BindingResource::TextureView(&r.depth_view) },
+            wgpu::BindGroupEntry { binding: 7, resource: r.patch_scale.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 8, resource: r.partials.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 9, resource: wgpu::BindingResource::TextureView(&r.front_view) },
         ],
     });
 
     let module = gpu.shader(Shader::SolveHemicube);
+    let front_target = [Some(wgpu::ColorTargetState::from(FRONT_FORMAT))];
     let hemicube_pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some("solve_hemicube"),
         bind_group_layouts: &[Some(&hemicube_layout)],
@@ -607,6 +644,7 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
         &module,
         "vs_hemicube",
         Some("fs_hemicube"),
+        &front_target,
     );
     let masked = Casters::pipeline(
         gpu,
@@ -615,12 +653,15 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
         &module,
         "vs_hemicube",
         Some("fs_hemicube_masked"),
+        &front_target,
     );
 
     Pipelines {
         power: (gpu.compute_pipeline(Shader::SolvePatchPower, "main", &[&power_layout]), power_group),
         select: (gpu.compute_pipeline(Shader::SolveSelect, "main", &[&select_layout]), select_group),
         hemicube: (opaque, masked, hemicube_group),
+        measure: gpu.compute_pipeline(Shader::SolveShoot, "measure", &[&shoot_layout]),
+        finish: gpu.compute_pipeline(Shader::SolveShoot, "finish", &[&shoot_layout]),
         shoot: (gpu.compute_pipeline(Shader::SolveShoot, "main", &[&shoot_layout]), shoot_group),
     }
 }
@@ -637,7 +678,12 @@ fn render_hemicubes(
 ) {
     let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
         label: Some("solve_hemicube"),
-        color_attachments: &[],
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: &r.front_view,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT), store: wgpu::StoreOp::Store },
+        })],
         depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
             view: &r.depth_view,
             depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),

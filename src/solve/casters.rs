@@ -128,6 +128,7 @@ impl Casters {
         module: &wgpu::ShaderModule,
         vertex: &str,
         fragment: Option<&str>,
+        targets: &[Option<wgpu::ColorTargetState>],
     ) -> wgpu::RenderPipeline {
         gpu.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some(label),
@@ -151,7 +152,7 @@ impl Casters {
                 module,
                 entry_point: Some(entry),
                 compilation_options: Default::default(),
-                targets: &[],
+                targets,
             }),
             multiview_mask: None,
             cache: None,

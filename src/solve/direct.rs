@@ -221,7 +221,7 @@ pub fn run(
         immediate_size: 0,
     });
     let opaque_pipeline =
-        Casters::pipeline(gpu, "solve_depth", &depth_pipeline_layout, &depth_module, "vs_depth", None);
+        Casters::pipeline(gpu, "solve_depth", &depth_pipeline_layout, &depth_module, "vs_depth", None, &[]);
     let masked_pipeline = Casters::pipeline(
         gpu,
         "solve_depth masked",
@@ -229,6 +229,7 @@ pub fn run(
         &depth_module,
         "vs_depth",
         Some("fs_depth_masked"),
+        &[],
     );
 
     // The second layer's pass reads the first layer.
@@ -253,6 +254,7 @@ pub fn run(
         &depth_module,
         "vs_depth",
         Some("fs_depth_peel"),
+        &[],
     );
     let peel_masked_pipeline = Casters::pipeline(
         gpu,
@@ -261,6 +263,7 @@ pub fn run(
         &depth_module,
         "vs_depth",
         Some("fs_depth_peel_masked"),
+        &[],
     );
 
     let compute = wgpu::ShaderStages::COMPUTE;

@@ -144,9 +144,20 @@ fn patch(texels: &TexelSet, members: &[u32], first: u32, texel_size: f32) -> Pat
     if x0 > x1 {
         (x0, x1, y0, y1) = (first_xy.0 - 0.5, first_xy.0 + 0.5, first_xy.1 - 0.5, first_xy.1 + 0.5);
     }
-    let rect_centre = c + u * ((x0 + x1) * 0.5 - mean_xy.0) + v * ((y0 + y1) * 0.5 - mean_xy.1);
-    let half_u = u * ((x1 - x0) * 0.5);
-    let half_v = v * ((y1 - y0) * 0.5);
+    let mut rect_centre = c + u * ((x0 + x1) * 0.5 - mean_xy.0) + v * ((y0 + y1) * 0.5 - mean_xy.1);
+    let mut half_u = u * ((x1 - x0) * 0.5);
+    let mut half_v = v * ((y1 - y0) * 0.5);
+    // Texels along a chart's border sit at inset positions that can all lie
+    // on one edge, and a fit to them collapses to a sliver that would shoot
+    // almost nothing: stand in a square of the patch's area at its centroid.
+    let rect_area = 4.0 * half_u.cross(half_v).length();
+    if !(rect_area >= 0.5 * area) {
+        let side = area.sqrt().max(texel_size as f64 * 1e-3);
+        let t = normal.as_dvec3().any_orthonormal_vector();
+        rect_centre = centroid.as_dvec3();
+        half_u = t * (0.5 * side);
+        half_v = normal.as_dvec3().cross(t) * (0.5 * side);
+    }
     Patch {
         position: centroid.to_array(),
         area: area as f32,
