@@ -151,7 +151,7 @@ fn patch(texels: &TexelSet, members: &[u32], first: u32, texel_size: f32) -> Pat
     // on one edge, and a fit to them collapses to a sliver that would shoot
     // almost nothing: stand in a square of the patch's area at its centroid.
     let rect_area = 4.0 * half_u.cross(half_v).length();
-    if !(rect_area >= 0.5 * area) {
+    if rect_area.is_nan() || rect_area < 0.5 * area {
         let side = area.sqrt().max(texel_size as f64 * 1e-3);
         let t = normal.as_dvec3().any_orthonormal_vector();
         rect_centre = centroid.as_dvec3();
