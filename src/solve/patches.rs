@@ -254,4 +254,21 @@ mod tests {
         assert!((rect_area - p.area).abs() < 1e-5);
         assert_eq!(p.lift, 0.0);
     }
+
+    #[test]
+    fn texels_squeezed_near_one_edge_still_shoot_their_area() {
+        // Border texels take inset positions; when a patch's texels sit
+        // nearly on one line the affine fit collapses to a sliver, and the
+        // patch must fall back to a square of its area.
+        let mut texels = grid();
+        for t in &mut texels.texels {
+            t.position[2] *= 1e-3;
+        }
+        let patches = build(&texels, 4, 0.1);
+        for p in &patches.patches {
+            let rect_area = 4.0 * Vec3::from(p.half_u).cross(Vec3::from(p.half_v)).length();
+            assert!((rect_area - p.area).abs() < 1e-5, "rect {rect_area} for area {}", p.area);
+            assert!(Vec3::from(p.half_u).dot(Vec3::from(p.normal)).abs() < 1e-6, "in the patch's plane");
+        }
+    }
 }
