@@ -213,7 +213,7 @@ struct Resources {
     stats: wgpu::Buffer,
     /// Per patch: the scale of its form factors, 0 until it first shoots.
     patch_scale: wgpu::Buffer,
-    /// Per shooter slot and texel chunk: the measure pass's sums.
+    /// Near- and far-field sums of the measure pass per shooter slot and texel chunk.
     partials: wgpu::Buffer,
     depth_view: wgpu::TextureView,
     front_view: wgpu::TextureView,
@@ -507,7 +507,7 @@ fn resources(
         patch_scale: gpu.storage_buffer("solve_shoot patch scales", &vec![0f32; patches.patches.len().max(1)], none),
         partials: gpu.storage_buffer(
             "solve_shoot measured sums",
-            &vec![0f32; (MAX_SHOOTERS * params.chunk_count) as usize],
+            &vec![0f32; (2 * MAX_SHOOTERS * params.chunk_count) as usize],
             none,
         ),
         depth_view: depth.create_view(&Default::default()),
