@@ -126,6 +126,11 @@ pub struct Args {
     #[arg(long, value_name = "NAME")]
     pub adapter: Option<String>,
 
+    /// Give up when one GPU submission (a batch of lights or shots, a read-back) runs longer than
+    /// this: a hung driver then ends the bake with an error instead of blocking the build; 0: wait forever
+    #[arg(long, value_name = "SECONDS", default_value_t = 600.0)]
+    pub gpu_timeout: f64,
+
     /// Print nothing but errors
     #[arg(short, long)]
     pub quiet: bool,
@@ -224,6 +229,9 @@ impl Args {
         if !(self.tolerance.is_finite() && self.tolerance >= 0.0 && self.tolerance < 1.0) {
             bail!("--tolerance must be a fraction in [0, 1), not {}", self.tolerance);
         }
+        if !(self.gpu_timeout.is_finite() && self.gpu_timeout >= 0.0) {
+            bail!("--gpu-timeout must be a number of seconds ≥ 0, not {}", self.gpu_timeout);
+        }
         if let Some(seconds) = self.max_time
             && !(seconds.is_finite() && seconds >= 0.0)
         {
@@ -258,6 +266,7 @@ impl Args {
             },
             output: self.output,
             adapter: self.adapter,
+            gpu_timeout: (self.gpu_timeout > 0.0).then(|| std::time::Duration::from_secs_f64(self.gpu_timeout)),
             bake: BakeOptions {
                 unwrap: UnwrapOptions {
                     backend: self.unwrapper,

@@ -59,6 +59,8 @@ pub struct Config {
     pub output: PathBuf,
     /// Substring of the adapter name to use (`--adapter`).
     pub adapter: Option<String>,
+    /// Longest wait for one GPU submission (`--gpu-timeout`); `None`: forever.
+    pub gpu_timeout: Option<std::time::Duration>,
     pub bake: BakeOptions,
     pub log: LogMode,
     /// What goes into report.json besides the bake, and whether to plot.

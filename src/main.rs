@@ -33,7 +33,7 @@ fn run(args: Args) -> anyhow::Result<()> {
     config.report.arguments = std::env::args().collect();
     bake::preflight(&config)?;
     let mut progress = Reporter::new(config.log);
-    let gpu = Gpu::new(config.adapter.as_deref())?;
+    let gpu = Gpu::new(config.adapter.as_deref())?.with_wait_timeout(config.gpu_timeout);
     progress.info("adapter", &format!("adapter: {}", gpu.adapter));
     let report = bake::run(&config, &gpu, &mut progress)?;
     if config.log != LogMode::Quiet {

@@ -5,7 +5,8 @@
 //!
 //! The loss is made by the test hook `BAKE_TEST_LOSE_DEVICE=<stage>`, which
 //! destroys the device at that stage's first wait for GPU work (see
-//! `Gpu::wait`).
+//! `Gpu::wait`). A GPU that stops answering without a loss is given up on
+//! after `--gpu-timeout` and ends the same way.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -134,4 +135,22 @@ fn a_device_lost_mid_bake_leaves_earlier_outputs_as_they_were() {
     let run = bake(dir.path(), &args, &out, Some("solve"));
     assert_lost(&run, "scene.glb", "solve");
     assert_eq!(contents(&out), written, "the failed run changed the output folder");
+}
+
+#[test]
+fn a_gpu_that_does_not_answer_within_the_timeout_ends_the_bake_with_one_line_and_no_output() {
+    // A hung driver that never reports a lost device would block a build
+    // forever; `--gpu-timeout` bounds every wait. One microsecond is shorter
+    // than any GPU work, so the first wait (in texelize, or the solve if the
+    // driver were that fast) gives up, as a wait on a hung GPU would.
+    let dir = tempfile::tempdir().unwrap();
+    let sky = fixture("sky_sun.exr");
+    std::fs::copy(fixture("sphere_on_ground.glb"), dir.path().join("scene.glb")).unwrap();
+    let before = contents(dir.path());
+    let args = ["scene.glb", "--env", sky.to_str().unwrap(), "--gpu-timeout", "0.000001"];
+    let run = bake(dir.path(), &args, Path::new("out"), None);
+    let stage = if run.stderr.contains("texelize: ") { "texelize" } else { "solve" };
+    assert_lost(&run, "scene.glb", stage);
+    assert!(run.stderr.contains("within 0.000001 s (--gpu-timeout)"), "the error names the limit: {}", run.stderr);
+    assert_eq!(contents(dir.path()), before, "the run left files behind (or changed some)");
 }

@@ -14,6 +14,7 @@ pub use shaders::Shader;
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
@@ -55,6 +56,8 @@ pub struct Gpu {
     stage: Mutex<String>,
     /// Largest allocator total seen by `wait` since `take_memory_peak` (bytes).
     memory_peak: AtomicU64,
+    /// Longest a `wait` blocks before the GPU counts as hung (`None`: forever).
+    wait_timeout: Option<Duration>,
 }
 
 /// Environment variable of the device-loss test hook (see `Gpu::wait`).
@@ -152,7 +155,16 @@ impl Gpu {
             lose_at: std::env::var(LOSE_DEVICE_HOOK).ok().filter(|s| !s.is_empty()),
             stage: Mutex::new(String::new()),
             memory_peak: AtomicU64::new(0),
+            wait_timeout: None,
         })
+    }
+
+    /// Makes every `wait` give up after `timeout`: a driver that stops
+    /// answering without reporting a lost device then fails the bake with an
+    /// error instead of blocking it forever.
+    pub fn with_wait_timeout(mut self, timeout: Option<Duration>) -> Gpu {
+        self.wait_timeout = timeout;
+        self
     }
 
     /// Why the device was lost, or `None` while it works.
@@ -221,11 +233,25 @@ impl Gpu {
         }
         self.lose_device_if_asked();
         self.sample_memory();
-        let waited = self.device.poll(wgpu::PollType::wait_indefinitely());
+        let waited = self.device.poll(wgpu::PollType::Wait { submission_index: None, timeout: self.wait_timeout });
         if let Some(error) = lost() {
             return Err(error);
         }
-        waited.map(|_| ()).map_err(|e| anyhow::anyhow!("GPU wait failed: {e}"))
+        match waited {
+            Ok(_) => Ok(()),
+            Err(wgpu::PollError::Timeout) => {
+                // Given up on: later calls fail at once instead of waiting on
+                // the same work again, and name the stage as a loss does.
+                let limit = self.wait_timeout.map_or(0.0, |t| t.as_secs_f64());
+                let why = format!(
+                    "no answer to one submission within {limit} s (--gpu-timeout): the driver may be hung, or the \
+                     work too large; a smaller --max-atlas-size or fewer --lights make submissions shorter"
+                );
+                *self.lost.lock().unwrap() = Some(why);
+                Err(lost().expect("just marked lost"))
+            }
+            Err(e) => bail!("GPU wait failed: {e}"),
+        }
     }
 
     /// The test hook: `BAKE_TEST_LOSE_DEVICE=<stage>` (a stage that uses the
