@@ -44,9 +44,9 @@
 const MAX_SHOOTERS: u32 = 64u;
 // Texels one measure workgroup sums (64 invocations × 64 texels).
 const MEASURE_CHUNK: u32 = 4096u;
-// Bounds on the normalization: a patch whose receivers catch less than a
-// quarter (or more than four times) of what its hemicube sees has geometry
-// the texels do not describe, and is left nearer its own estimate.
+// Bounds on the far-field scale: a patch that needs more has geometry the
+// texels do not describe (its hemicube and its receivers disagree), and is
+// left nearer its own estimate.
 const MIN_SCALE: f32 = 0.25;
 const MAX_SCALE: f32 = 4.0;
 // Receivers closer than this many patch radii use the exact polygon form factor.
