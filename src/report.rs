@@ -26,7 +26,7 @@ use crate::solve::{BounceStats, Skipped, Solution, direct::DirectStats};
 use crate::texelize::TexelSet;
 
 /// Version of the report's layout; bumped on any incompatible change.
-pub const SCHEMA_VERSION: u32 = 2;
+pub const SCHEMA_VERSION: u32 = 3;
 
 /// The schema `report.json` follows (also in the repository as `schema/report.schema.json`).
 pub const SCHEMA: &str = include_str!("../schema/report.schema.json");

@@ -39,6 +39,13 @@ pub const MAX_SHOOTERS: u32 = 64;
 /// (`MEASURE_CHUNK` in solve_shoot.wgsl).
 const MEASURE_CHUNK: u32 = 4096;
 
+/// Normalize the form factors only where the scene catches at least this
+/// much of the light it reflects (mean albedo × covered share): below it, a
+/// loss of a few percent per bounce changes the lightmap by well under 1 %
+/// (ε ρf/(1 − ρf) < ε/4), and the measure pass would add up to 1.9× to every
+/// patch's first shot.
+const NORMALIZE_FROM: f64 = 0.2;
+
 /// Hemicube companion target: 1 where the shooter sees a surface's front.
 const FRONT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 
@@ -143,6 +150,9 @@ pub struct BounceStats {
     /// Mean ambient term added for the light not yet shot when a budget
     /// stopped the pass (zero when it converged), L_lm RGB.
     pub ambient: [f32; 3],
+    /// Whether each patch's form factors were normalized to its hemicube's
+    /// covered share (skipped where the scene catches little of its light).
+    pub normalized: bool,
     pub trace: Vec<TracePoint>,
 }
 
@@ -308,6 +318,13 @@ pub fn run(
     let patch_params = BounceParams { row_stride: patch_groups_x * 64, ..params };
 
     let resources = resources(gpu, scene, texels, patches, &unshot, lightmap, params, face, tiles_per_row, tile_rows);
+    // Without a direct pass (emitters only) the share is unknown: normalize.
+    let normalized = initial_closure.is_none_or(|f| f * luminance(mean_albedo) >= NORMALIZE_FROM);
+    if !normalized {
+        // Every patch's scale known (1): the measure and finish passes skip.
+        let ones = vec![1f32; patches.patches.len().max(1)];
+        gpu.queue.write_buffer(&resources.patch_scale, 0, bytemuck::cast_slice(&ones));
+    }
     let patch_params_buffer = gpu.uniform_buffer("solve_patch_power params", &patch_params);
     let pipelines = pipelines(gpu, &resources, &patch_params_buffer);
 
@@ -366,10 +383,12 @@ pub fn run(
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
             pass.set_bind_group(0, &pipelines.shoot.1, &[]);
-            pass.set_pipeline(&pipelines.measure);
-            pass.dispatch_workgroups(params.chunk_count, shooter_count, 1);
-            pass.set_pipeline(&pipelines.finish);
-            pass.dispatch_workgroups(shooter_count, 1, 1);
+            if normalized {
+                pass.set_pipeline(&pipelines.measure);
+                pass.dispatch_workgroups(params.chunk_count, shooter_count, 1);
+                pass.set_pipeline(&pipelines.finish);
+                pass.dispatch_workgroups(shooter_count, 1, 1);
+            }
             pass.set_pipeline(&pipelines.shoot.0);
             pass.set_bind_group(0, &pipelines.shoot.1, &[]);
             pass.dispatch_workgroups(groups_x, groups_y, 1);
@@ -429,6 +448,7 @@ pub fn run(
         closure,
         shot_closure: if shot_total > 0.0 { received_total / shot_total } else { 1.0 },
         ambient,
+        normalized,
         trace,
     })
 }
@@ -504,7 +524,11 @@ fn resources(
         chosen: gpu.storage_buffer("solve_select chosen", &vec![0u32; patches.patches.len()], none),
         shooters: gpu.storage_buffer("solve_select shooters", &[Shooter::default(); MAX_SHOOTERS as usize], none),
         stats: gpu.storage_buffer("solve_select stats", &[GpuStats::default()], wgpu::BufferUsages::COPY_SRC),
-        patch_scale: gpu.storage_buffer("solve_shoot patch scales", &vec![0f32; patches.patches.len().max(1)], none),
+        patch_scale: gpu.storage_buffer(
+            "solve_shoot patch scales",
+            &vec![0f32; patches.patches.len().max(1)],
+            wgpu::BufferUsages::COPY_DST,
+        ),
         partials: gpu.storage_buffer(
             "solve_shoot measured sums",
             &vec![0f32; (2 * MAX_SHOOTERS * params.chunk_count) as usize],
