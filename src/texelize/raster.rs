@@ -49,27 +49,14 @@ struct Targets {
     depth: wgpu::Texture,
 }
 
-fn target(gpu: &Gpu, label: &str, width: u32, height: u32, format: wgpu::TextureFormat) -> wgpu::Texture {
-    gpu.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-        view_formats: &[],
-    })
-}
-
 /// Rasterizes `mesh` into a `width`×`height` atlas and returns its covered texels
 /// (`chart` and `primitive` still unset).
 pub(super) fn texelize(gpu: &Gpu, mesh: &Mesh, materials: &Materials, width: u32, height: u32) -> Result<Vec<Texel>> {
     let targets = Targets {
-        triangle: target(gpu, "texelize triangle ids", width, height, wgpu::TextureFormat::R32Uint),
-        bary: target(gpu, "texelize barycentrics", width, height, wgpu::TextureFormat::Rgba32Float),
-        area: target(gpu, "texelize areas", width, height, wgpu::TextureFormat::Rg32Float),
-        depth: target(gpu, "texelize distance", width, height, wgpu::TextureFormat::Depth32Float),
+        triangle: gpu.render_target("texelize triangle ids", width, height, wgpu::TextureFormat::R32Uint),
+        bary: gpu.render_target("texelize barycentrics", width, height, wgpu::TextureFormat::Rgba32Float),
+        area: gpu.render_target("texelize areas", width, height, wgpu::TextureFormat::Rg32Float),
+        depth: gpu.depth_target("texelize distance", width, height),
     };
     let corners = gpu.storage_buffer("texelize corners", &mesh.corners, wgpu::BufferUsages::empty());
     rasterize(gpu, mesh, &corners, width, height, &targets);
