@@ -265,8 +265,10 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_
 var<workgroup> sums: array<f32, 64>;
 var<workgroup> slot_needs_scale: u32;
 
-// Sums sums[0..64] into sums[0]; every invocation must call it.
-fn reduce_sums(lid: u32) {
+// The sum of `value` over the workgroup's 64 invocations, in a fixed order;
+// every invocation must call it.
+fn workgroup_sum(value: f32, lid: u32) -> f32 {
+    sums[lid] = value;
     for (var half = 32u; half > 0u; half >>= 1u) {
         workgroupBarrier();
         if (lid < half) {
@@ -274,6 +276,10 @@ fn reduce_sums(lid: u32) {
         }
     }
     workgroupBarrier();
+    let total = sums[0];
+    // Everyone has read it before the next call writes `sums` again.
+    workgroupBarrier();
+    return total;
 }
 
 // Whether slot k holds a patch whose scale is still unknown (read by one
@@ -306,12 +312,10 @@ fn measure(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
     sum /= max(s.area, 1e-30);
     // Near-field sums first, then far-field ones.
     for (var part = 0u; part < 2u; part++) {
-        sums[lid] = sum[part];
-        reduce_sums(lid);
+        let total = workgroup_sum(sum[part], lid);
         if (lid == 0u) {
-            partials[(part * MAX_SHOOTERS + k) * params.chunk_count + group.x] = sums[0];
+            partials[(part * MAX_SHOOTERS + k) * params.chunk_count + group.x] = total;
         }
-        workgroupBarrier();
     }
 }
 
@@ -330,10 +334,7 @@ fn finish(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_ind
         for (var c = lid; c < params.chunk_count; c += 64u) {
             sum += partials[(part * MAX_SHOOTERS + k) * params.chunk_count + c];
         }
-        sums[lid] = sum;
-        reduce_sums(lid);
-        measured[part] = sums[0];
-        workgroupBarrier();
+        measured[part] = workgroup_sum(sum, lid);
     }
 
     // Delta form factor of a pixel on a face at unit distance, direction d:
@@ -355,14 +356,10 @@ fn finish(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_ind
             }
         }
     }
-    sums[lid] = covered;
-    reduce_sums(lid);
-    covered = sums[0];
-    workgroupBarrier();
-    sums[lid] = total;
-    reduce_sums(lid);
+    covered = workgroup_sum(covered, lid);
+    total = workgroup_sum(total, lid);
     if (lid == 0u) {
-        let share = covered / max(sums[0], 1e-30);
+        let share = covered / max(total, 1e-30);
         var scale = 1.0;
         // Only the far field is scaled: the near field's polygon form factors
         // are exact, and scaling them would over-light the receivers next to

@@ -11,10 +11,12 @@
 //!
 //! The first time a patch shoots, its form factors are normalized: the
 //! `measure` and `finish` entry points of `solve_shoot` sum them over every
-//! receiver and compare the sum with the share of its hemicube that sees a
-//! surface's front, and the patch's shots are scaled by the ratio from then
-//! on. So a closed room catches exactly what is shot, which a near-white
-//! room needs (a 4 % loss per bounce made ρ = 0.99 come out 5× too dark).
+//! receiver, near and far field apart, and scale its far-field ones from
+//! then on so that the sum is the share of its hemicube that sees a
+//! surface's front. So a closed room catches exactly what is shot, which a
+//! near-white room needs (a 4 % loss per bounce made ρ = 0.99 come out 5×
+//! too dark). Scenes that catch little of what they reflect skip it
+//! (`NORMALIZE_FROM`).
 //!
 //! A run stopped by a budget still answers honestly: the light not yet shot
 //! is spread as an ambient term (Cohen et al.'s, scaled by the measured share
@@ -235,7 +237,7 @@ struct Pipelines {
     select: (wgpu::ComputePipeline, wgpu::BindGroup),
     /// Opaque and alpha-cut-out casters, and their bind group.
     hemicube: (wgpu::RenderPipeline, wgpu::RenderPipeline, wgpu::BindGroup),
-    /// The form-factor normalization (measure, finish) and the shots; one bind group.
+    /// The form-factor normalization (measure, then finish); they share the shots' bind group.
     measure: wgpu::ComputePipeline,
     finish: wgpu::ComputePipeline,
     shoot: (wgpu::ComputePipeline, wgpu::BindGroup),
@@ -390,7 +392,6 @@ pub fn run(
                 pass.dispatch_workgroups(shooter_count, 1, 1);
             }
             pass.set_pipeline(&pipelines.shoot.0);
-            pass.set_bind_group(0, &pipelines.shoot.1, &[]);
             pass.dispatch_workgroups(groups_x, groups_y, 1);
         }
         gpu.queue.submit([encoder.finish()]);
