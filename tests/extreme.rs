@@ -373,6 +373,7 @@ fn a_nearly_white_closed_room_reaches_le_over_one_minus_rho() {
     // instead of 100. Normalized per shooter against its hemicube, the shots
     // deliver the covered share (1 here), and so does the ambient term.
     let room = nearly_white_room();
+    assert!(room.bounce.normalized, "an emitter-lit room has no covered share to skip by: it must normalize");
     assert!(
         (room.bounce.shot_closure - 1.0).abs() < 1e-3,
         "shots delivered {} of their light",
