@@ -92,6 +92,11 @@ pub struct Args {
     #[arg(long, value_name = "N")]
     pub shadow_map_size: Option<u32>,
 
+    /// Keep each texel's direct light at its centre even where a shadow edge crosses it
+    /// (by default such texels average sub-samples of their footprint)
+    #[arg(long)]
+    pub no_supersample: bool,
+
     /// Stop bouncing light when the unshot power falls below this fraction of the power put in;
     /// the rest is added as an ambient term and reported
     #[arg(long, value_name = "FRACTION", default_value_t = 0.01)]
@@ -277,6 +282,7 @@ impl Args {
                 keep_uv1: self.keep_uv1,
                 solve: SolveOptions {
                     shadow_map_size: self.shadow_map_size,
+                    supersample: !self.no_supersample,
                     bounce: BounceOptions {
                         tolerance: self.tolerance,
                         max_shots: self.max_shots,

@@ -428,6 +428,13 @@ fn scene_report(
                         .into(),
                 },
                 report::Fixup {
+                    stage: "supersample".into(),
+                    texels: baked.solution.supersampled,
+                    what: "texels a sharp edge of direct light crosses: the mean of sub-samples over the part of \
+                           their footprint the centre reaches along the surface"
+                        .into(),
+                },
+                report::Fixup {
                     stage: "dilation".into(),
                     texels: exported.dilated_texels,
                     what: "padding texels filled from their own chart, so bilinear filtering reads no black".into(),

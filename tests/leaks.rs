@@ -62,3 +62,49 @@ fn nothing_inside_a_closed_room_is_lit_from_outside() {
     // a real leak through a wall or a contact is of the order of 1e-2 and up.
     assert!(worst <= 1e-3 * ground, "light leaked into the room: {worst} against the ground's {ground}");
 }
+
+/// A wall thinner than a texel stands on a continuous floor under a low
+/// sun: the floor behind it is in its shadow right up to its foot. A texel
+/// there whose square reaches under the wall to the lit side must not
+/// average in that light (its supersamples stop at the wall).
+#[test]
+fn supersampling_does_not_reach_through_a_thin_wall() {
+    let gpu = common::gpu();
+    let mut builder = SceneBuilder::new();
+    builder.object("floor", &MeshData::plane(6.0, 6.0, 6), [0.0, 0.0, 0.0, 1.0], [0.0; 3], Placement::default());
+    // Off the texel grid's lines, so that texel centres lie behind it, not in it.
+    let (thickness, wall_z) = (0.01, 0.04);
+    builder.object(
+        "wall",
+        &MeshData::cuboid([4.0, 1.0, thickness]),
+        [0.0, 0.0, 0.0, 1.0],
+        [0.0; 3],
+        Placement::at(Vec3::new(0.0, 0.5, wall_z)),
+    );
+    // 30° above the horizon on the wall's +z side: its shadow reaches 1.7 m.
+    let sun = Vec3::new(0.0, 0.5, 0.75f32.sqrt());
+    let cos_radius = 0.5f32.to_radians().cos();
+    let sky =
+        EnvironmentMap::from_fn(2048, 1024, |d| if Vec3::from(d).dot(sun) >= cos_radius { [1e3; 3] } else { [0.0; 3] });
+    let lights = common::lights(&sky, LightMode::Budget { count: 32 });
+    let baked = common::bake(&gpu, &builder, &lights, &common::options(64));
+    let texel = 1.0 / baked.atlas.texels_per_unit;
+    assert!(texel > 4.0 * thickness, "the wall must be thinner than a texel ({texel} m)");
+    let floor = common::values_of(&baked, 0);
+    let open = floor.iter().filter(|(t, _)| t.position().z > wall_z + 0.5).map(|v| v.1).fold(0.0, f32::max);
+    let behind: Vec<f32> = floor
+        .iter()
+        .filter(|(t, _)| {
+            t.position().x.abs() < 1.5 && (wall_z - 1.0..wall_z - thickness / 2.0).contains(&t.position().z)
+        })
+        .map(|v| v.1)
+        .collect();
+    let worst = behind.iter().cloned().fold(0.0, f32::max);
+    eprintln!(
+        "{} texels behind the wall: brightest {worst:.4} of the open floor's {open:.3}; supersampled {}",
+        behind.len(),
+        baked.solution.supersampled
+    );
+    assert!(baked.solution.supersampled > 0);
+    assert!(worst < 0.02 * open, "a texel behind the wall has {worst}, the open floor {open}");
+}

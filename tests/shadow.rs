@@ -8,7 +8,7 @@ mod common;
 
 use bake::environment::{EnvironmentMap, LightMode};
 use bake::fixtures::{MeshData, Placement, SceneBuilder};
-use glam::{Vec3, Vec3Swizzles};
+use glam::{Quat, Vec3, Vec3Swizzles};
 
 #[test]
 fn sphere_darkens_the_ground_beneath_it_by_the_analytic_amount() {
@@ -37,4 +37,81 @@ fn sphere_darkens_the_ground_beneath_it_by_the_analytic_amount() {
     assert!((mean(&below) / expected - 1.0).abs() < 0.03, "below: {} vs {expected}", mean(&below));
     assert!(mean(&far) > 0.97 * sky, "far: {}", mean(&far));
     assert!(mean(&below) < 0.7 * mean(&far));
+}
+
+/// Lit share of the texel footprint centred on `centre` with atlas axes
+/// `du`, `dv` (world vectors per texel), by a 32 × 32 grid over it.
+fn lit_share(centre: Vec3, du: Vec3, dv: Vec3, lit: impl Fn(Vec3) -> bool) -> f32 {
+    let n = 32;
+    let mut count = 0;
+    for j in 0..n {
+        for i in 0..n {
+            let (a, b) = ((i as f32 + 0.5) / n as f32 - 0.5, (j as f32 + 0.5) / n as f32 - 0.5);
+            count += usize::from(lit(centre + du * a + dv * b));
+        }
+    }
+    count as f32 / (n * n) as f32
+}
+
+/// A hard shadow edge crosses the ground's texels at an angle: a square
+/// slab floats 1 m above the ground under a small sun straight overhead,
+/// nothing else lights the scene, and everything is black so nothing
+/// bounces. (Overhead, lifting a receiver off its surface against acne
+/// does not move the edge.) A texel stands for its footprint, so each
+/// texel the edge crosses must hold the lit share of its square, as a box
+/// filter gives it, not the 0 or 1 of its centre.
+#[test]
+fn a_hard_shadow_edge_is_box_filtered_over_each_texels_footprint() {
+    let gpu = common::gpu();
+    let turn = Quat::from_rotation_y(30f32.to_radians());
+    let side = 3.0f32;
+    let mut builder = SceneBuilder::new();
+    builder.object("ground", &MeshData::plane(6.0, 6.0, 4), [0.0, 0.0, 0.0, 1.0], [0.0; 3], Placement::default());
+    builder.object(
+        "slab",
+        &MeshData::cuboid([side, 0.1, side]),
+        [0.0, 0.0, 0.0, 1.0],
+        [0.0; 3],
+        Placement::at(Vec3::Y).rotated(turn),
+    );
+    let cos_radius = 0.5f32.to_radians().cos();
+    let sun = EnvironmentMap::from_fn(2048, 1024, |d| if d[1] >= cos_radius { [1e3; 3] } else { [0.0; 3] });
+    let lights = common::lights(&sun, LightMode::Budget { count: 32 });
+    let local = |p: Vec3| turn.inverse() * p;
+    let lit = |p: Vec3| local(p).xz().abs().max_element() > side / 2.0;
+
+    let mut errors = Vec::new();
+    for supersample in [false, true] {
+        let mut options = common::options(128);
+        options.solve.supersample = supersample;
+        let baked = common::bake(&gpu, &builder, &lights, &options);
+        let width = baked.texels.width as i64;
+        let ground = common::values_of(&baked, 0);
+        let at: std::collections::HashMap<u32, Vec3> = ground.iter().map(|(t, _)| (t.index, t.position())).collect();
+        let open =
+            ground.iter().filter(|(t, _)| local(t.position()).xz().length() > 2.5).map(|v| v.1).fold(0.0, f32::max);
+        let (mut sum, mut count) = (0.0, 0);
+        for (t, value) in &ground {
+            // Along the slab's edges, away from its corners.
+            let q = local(t.position()).xz().abs();
+            if q.min_element() > side / 2.0 - 0.3 {
+                continue;
+            }
+            let near = |d: i64| at.get(&((t.index as i64 + d) as u32)).copied();
+            let (Some(r), Some(l), Some(u), Some(d)) = (near(1), near(-1), near(width), near(-width)) else {
+                continue;
+            };
+            let share = lit_share(t.position(), (r - l) / 2.0, (u - d) / 2.0, lit);
+            if share > 0.05 && share < 0.95 {
+                sum += (value / open - share).abs();
+                count += 1;
+            }
+        }
+        assert!(count >= 40, "only {count} texels on the edge");
+        let error = sum / count as f32;
+        eprintln!("supersample {supersample}: {count} texels on the edge, mean |value − lit share| {error:.4}");
+        errors.push(error);
+    }
+    assert!(errors[1] < 0.07, "supersampled edge texels are {} from their lit share", errors[1]);
+    assert!(errors[1] < 0.5 * errors[0], "supersampling changed the edge error from {} to {}", errors[0], errors[1]);
 }

@@ -366,6 +366,22 @@ impl Stats {
     }
 }
 
+/// The scene's triangles for visibility tests outside the reference: the
+/// solve's supersample fix-up asks whether a segment along a surface
+/// crosses other geometry.
+pub(crate) struct Occluders(Bvh);
+
+impl Occluders {
+    pub(crate) fn new(scene: &Scene) -> Occluders {
+        Occluders(Bvh::new(scene_triangles(scene).into_iter().map(|(_, _, t)| t).collect()))
+    }
+
+    /// Whether any triangle crosses the segment from `a` to `b` (ends excluded).
+    pub(crate) fn blocks(&self, a: DVec3, b: DVec3) -> bool {
+        self.0.occluded(a, b - a, 1.0, None)
+    }
+}
+
 /// `count` points spread over the surface of `scene`, area-weighted and
 /// stratified (point k falls in the k-th of `count` equal slices of the total
 /// area, in primitive and triangle order), uniformly within its triangle,

@@ -56,7 +56,7 @@ pub struct DirectStats {
     pub lights: usize,
     pub batches: usize,
     pub shadow_map_size: u32,
-    /// Texel-light pairs evaluated.
+    /// Texel-light pairs evaluated (sub-samples of the supersample fix-up included).
     pub evaluations: u64,
     /// Texels that some light in front of them does not reach (geometry in the way).
     pub shadowed_texels: u64,
@@ -359,6 +359,7 @@ pub fn run(
     let sums: Vec<[f32; 4]> = read_buffer(gpu, &irradiance, texels.texels.len())?;
     let covered: Vec<[f32; 2]> = read_buffer(gpu, &coverage, texels.texels.len())?;
     gpu.check("solve (direct)")?;
+    let irradiance: Vec<[f32; 3]> = sums.into_iter().map(|e| [e[0], e[1], e[2]]).collect();
     let stats = DirectStats {
         lights: lights.lights.len(),
         batches,
@@ -366,16 +367,21 @@ pub fn run(
         evaluations: total * texel_count as u64,
         shadowed_texels: covered.iter().filter(|c| c[0] > SHADOWED_SHARE * c[1]).count() as u64,
         seconds: start.elapsed().as_secs_f64(),
-        power_received: texels.texels.iter().zip(&sums).fold([0.0; 3], |mut sum, (t, e)| {
-            for (s, e) in sum.iter_mut().zip(e) {
-                *s += *e as f64 * t.area as f64;
-            }
-            sum
-        }),
+        power_received: power_received(texels, &irradiance),
     };
     Ok(Direct {
-        irradiance: sums.into_iter().map(|e| [e[0], e[1], e[2]]).collect(),
-        coverage: covered.iter().map(|c| if c[1] > 0.0 { c[0] / c[1] } else { 0.0 }).collect(),
         stats,
+        irradiance,
+        coverage: covered.iter().map(|c| if c[1] > 0.0 { c[0] / c[1] } else { 0.0 }).collect(),
+    })
+}
+
+/// Σ E·A over the texels, RGB: the power `irradiance` delivers.
+pub(super) fn power_received(texels: &TexelSet, irradiance: &[[f32; 3]]) -> [f64; 3] {
+    texels.texels.iter().zip(irradiance).fold([0.0; 3], |mut sum, (t, e)| {
+        for (s, e) in sum.iter_mut().zip(e) {
+            *s += *e as f64 * t.area as f64;
+        }
+        sum
     })
 }

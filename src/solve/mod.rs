@@ -11,6 +11,7 @@ pub mod bounce;
 mod casters;
 pub mod direct;
 pub mod patches;
+pub mod supersample;
 
 use anyhow::Result;
 use serde::{Deserialize, Serialize};
@@ -29,12 +30,20 @@ pub struct SolveOptions {
     pub shadow_map_size: Option<u32>,
     /// Lights rendered and gathered per GPU batch (at most 256).
     pub batch_size: u32,
+    /// Gather texels on a sharp change of direct light at sub-samples of
+    /// their footprint (`supersample`).
+    pub supersample: bool,
     pub bounce: BounceOptions,
 }
 
 impl Default for SolveOptions {
     fn default() -> Self {
-        SolveOptions { shadow_map_size: None, batch_size: 64, bounce: BounceOptions::default() }
+        SolveOptions {
+            shadow_map_size: None,
+            batch_size: 64,
+            supersample: std::env::var("NOSS").is_err(),
+            bounce: BounceOptions::default(),
+        }
     }
 }
 
@@ -45,6 +54,9 @@ pub struct Solution {
     pub lightmap: Vec<[f32; 3]>,
     pub direct: Option<direct::DirectStats>,
     pub bounce: Option<BounceStats>,
+    /// Texels whose direct light is the mean over sub-samples of their
+    /// footprint (`supersample`).
+    pub supersampled: usize,
     /// Passes left out and why, for the report.
     pub skipped: Vec<Skipped>,
 }
@@ -83,9 +95,20 @@ pub fn run(
     let mut direct_stats = None;
     let mut sees_itself = true;
     let mut coverage = None;
+    let mut supersampled = 0;
     match lights {
         Some(lights) if !lights.lights.is_empty() => {
-            let direct = direct::run(gpu, scene, texels, lights, texels_per_unit, options, progress)?;
+            let mut direct = direct::run(gpu, scene, texels, lights, texels_per_unit, options, progress)?;
+            let start = std::time::Instant::now();
+            let plan = options.supersample.then(|| supersample::plan(scene, texels, &direct.irradiance)).flatten();
+            if let Some(plan) = plan {
+                let sub = direct::run(gpu, scene, &plan.samples, lights, texels_per_unit, options, progress)?;
+                supersample::fold(&plan, &sub.irradiance, &mut direct.irradiance);
+                direct.stats.evaluations += sub.stats.evaluations;
+                direct.stats.seconds += start.elapsed().as_secs_f64();
+                direct.stats.power_received = direct::power_received(texels, &direct.irradiance);
+                supersampled = plan.texels;
+            }
             for (value, e) in lightmap.iter_mut().zip(&direct.irradiance) {
                 *value = e.map(|c| c / std::f32::consts::PI);
             }
@@ -123,5 +146,5 @@ pub fn run(
         )?;
         bounce_stats = Some(stats);
     }
-    Ok(Solution { lightmap, direct: direct_stats, bounce: bounce_stats, skipped })
+    Ok(Solution { lightmap, direct: direct_stats, bounce: bounce_stats, supersampled, skipped })
 }

@@ -1,0 +1,152 @@
+//! Supersample fix-up: where a shadow edge crosses a texel, its value becomes
+//! the mean of the direct light over the texel's footprint instead of the
+//! light at its centre, so a hard edge is anti-aliased instead of
+//! stair-stepped (issue 6, "a texel's value represents its footprint").
+//!
+//! After the direct pass, a texel is flagged when its direct irradiance
+//! differs from an atlas neighbour's by more than `EDGE_CONTRAST`, and it
+//! lies inside its chart (all eight neighbours are covered texels of the same
+//! chart, facing within `SAME_SURFACE_COS`): its footprint is then all
+//! surface, mapped to the world by the central differences of its
+//! neighbours' positions. Eight sub-samples in the footprint (the D3D
+//! standard 8× pattern) are gathered by a second direct pass. A sub-sample
+//! that the texel's centre cannot reach along the surface (a wall standing
+//! on the floor between them) is left out: the texel stands for the part of
+//! its footprint a viewer can see, and light from behind the wall must not
+//! leak in.
+
+use glam::{DVec3, Vec3};
+
+use crate::environment::luminance;
+use crate::reference::Occluders;
+use crate::scene::Scene;
+use crate::texelize::{Texel, TexelSet};
+
+/// Sub-sample offsets in texels from the texel's centre: the D3D standard
+/// 8× multisample pattern (in 1/16 texel), one sample per row and column
+/// of an 8 × 8 grid, so a straight edge at any angle steps in eighths.
+const PATTERN: [[f32; 2]; 8] =
+    [[1.0, -3.0], [-1.0, 3.0], [5.0, 1.0], [-3.0, -5.0], [-5.0, 5.0], [-7.0, -1.0], [3.0, 7.0], [7.0, -7.0]];
+/// Relative difference of direct irradiance between atlas neighbours above
+/// which both are gathered at sub-samples: a penumbra several texels wide
+/// changes less per texel and is already smooth.
+pub const EDGE_CONTRAST: f64 = 0.2;
+/// Neighbours whose normals turn further than this (cosine) are not the
+/// same smooth surface: the footprint would not be flat across them.
+const SAME_SURFACE_COS: f32 = 0.9;
+/// Height of the centre-to-sub-sample segment above the surface, in texel
+/// widths: above the curvature of a surface bent at most `SAME_SURFACE_COS`
+/// per texel, below anything standing on it.
+const LIFT_TEXELS: f64 = 0.05;
+
+/// The sub-samples of the flagged texels, as texels for a direct pass.
+pub struct Plan {
+    /// One texel per sub-sample: the owner's data at the sub-sample's position.
+    pub samples: TexelSet,
+    /// Index into the original `TexelSet` of each sub-sample's texel.
+    pub owner: Vec<u32>,
+    /// Texels flagged (some may keep only part of their sub-samples).
+    pub texels: usize,
+}
+
+/// Flags the texels on a sharp change of `irradiance` and places their
+/// sub-samples. `None` when no texel needs them.
+pub fn plan(scene: &Scene, texels: &TexelSet, irradiance: &[[f32; 3]]) -> Option<Plan> {
+    let (width, height) = (texels.width as i64, texels.height as i64);
+    let mut slot = vec![u32::MAX; (texels.width as usize) * (texels.height as usize)];
+    for (i, t) in texels.texels.iter().enumerate() {
+        slot[t.index as usize] = i as u32;
+    }
+    let at = |t: &Texel, dx: i64, dy: i64| -> Option<usize> {
+        let (x, y) = (t.x(texels.width) as i64 + dx, t.y(texels.width) as i64 + dy);
+        if x < 0 || y < 0 || x >= width || y >= height {
+            return None;
+        }
+        let j = slot[(x + y * width) as usize];
+        (j != u32::MAX).then_some(j as usize)
+    };
+    let level: Vec<f64> = irradiance.iter().map(|&e| luminance(e)).collect();
+    let peak = level.iter().cloned().fold(0.0f64, f64::max);
+    if peak <= 0.0 {
+        return None;
+    }
+    let flagged: Vec<usize> = (0..texels.texels.len())
+        .filter(|&i| {
+            let t = &texels.texels[i];
+            t.area > 0.0
+                && [(1, 0), (-1, 0), (0, 1), (0, -1)].iter().any(|&(dx, dy)| {
+                    at(t, dx, dy).is_some_and(|j| {
+                        let (a, b) = (level[i], level[j]);
+                        // Far below the brightest texel, a difference is invisible.
+                        a.max(b) > 1e-6 * peak && (a - b).abs() > EDGE_CONTRAST * a.max(b)
+                    })
+                })
+        })
+        .collect();
+    if flagged.is_empty() {
+        return None;
+    }
+    let mut occluders: Option<Occluders> = None;
+    let mut samples = Vec::new();
+    let mut owner = Vec::new();
+    let mut count = 0;
+    for i in flagged {
+        let t = &texels.texels[i];
+        // Inside its chart: all eight neighbours are its surface.
+        let mut around = [[0usize; 3]; 3];
+        let inside = (-1..=1i64).all(|dy| {
+            (-1..=1i64).all(|dx| {
+                at(t, dx, dy).is_some_and(|j| {
+                    let n = &texels.texels[j];
+                    around[(dy + 1) as usize][(dx + 1) as usize] = j;
+                    n.chart == t.chart && n.area > 0.0 && n.normal().dot(t.normal()) >= SAME_SURFACE_COS
+                })
+            })
+        });
+        if !inside {
+            continue;
+        }
+        let p = |j: usize| texels.texels[j].position();
+        let du = (p(around[1][2]) - p(around[1][0])) * 0.5;
+        let dv = (p(around[2][1]) - p(around[0][1])) * 0.5;
+        let occluders = occluders.get_or_insert_with(|| Occluders::new(scene));
+        let lift = DVec3::from(Vec3::from(t.face_normal)) * LIFT_TEXELS * du.length().min(dv.length()) as f64;
+        let centre = t.position().as_dvec3() + lift;
+        let before = samples.len();
+        for (k, [ox, oy]) in PATTERN.iter().enumerate() {
+            let position = t.position() + du * (ox / 16.0) + dv * (oy / 16.0);
+            if occluders.blocks(centre, position.as_dvec3() + lift) {
+                continue;
+            }
+            samples.push(Texel {
+                position: position.to_array(),
+                // A different filter turn per sub-sample (the direct pass turns its taps by index).
+                index: t.index.wrapping_mul(PATTERN.len() as u32).wrapping_add(k as u32),
+                ..*t
+            });
+            owner.push(i as u32);
+        }
+        count += usize::from(samples.len() > before);
+    }
+    (count > 0).then_some(Plan {
+        samples: TexelSet { width: texels.width, height: texels.height, texels: samples },
+        owner,
+        texels: count,
+    })
+}
+
+/// Replaces each flagged texel's irradiance with the mean of its
+/// sub-samples' (`gathered`, in `plan.samples` order).
+pub fn fold(plan: &Plan, gathered: &[[f32; 3]], irradiance: &mut [[f32; 3]]) {
+    let mut sums: std::collections::BTreeMap<u32, ([f64; 3], u32)> = Default::default();
+    for (&i, e) in plan.owner.iter().zip(gathered) {
+        let (sum, n) = sums.entry(i).or_default();
+        for c in 0..3 {
+            sum[c] += e[c] as f64;
+        }
+        *n += 1;
+    }
+    for (i, (sum, n)) in sums {
+        irradiance[i as usize] = sum.map(|s| (s / n as f64) as f32);
+    }
+}
