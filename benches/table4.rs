@@ -86,6 +86,9 @@ struct Args {
     /// Ceiling cells as SIZE:LIGHTS (cube lights).
     #[arg(long, value_delimiter = ',', default_values = ["256:1536", "512:384", "1024:96"])]
     ceiling: Vec<String>,
+    /// Grid bakes without the supersample fix-up (its cost is the difference).
+    #[arg(long)]
+    no_supersample: bool,
     /// Passed by `cargo bench`; ignored.
     #[arg(long, hide = true)]
     bench: bool,
@@ -292,6 +295,7 @@ fn grid(gpu: &Gpu, args: &Args, statues: &Statues, map: &Arc<EnvironmentMap>) ->
     for &size in &sizes {
         let mut options = BakeOptions::default();
         options.unwrap.max_atlas_size = size;
+        options.solve.supersample = !args.no_supersample;
         // The reference at texels of this atlas size (every cell of the size bakes the same texels).
         let probes = if args.reference_texels > 0 {
             let scene = statues.scene()?;

@@ -53,17 +53,14 @@ pub struct Plan {
 /// sub-samples. `None` when no texel needs them.
 pub fn plan(scene: &Scene, texels: &TexelSet, irradiance: &[[f32; 3]]) -> Option<Plan> {
     let (width, height) = (texels.width as i64, texels.height as i64);
-    let mut slot = vec![u32::MAX; (texels.width as usize) * (texels.height as usize)];
-    for (i, t) in texels.texels.iter().enumerate() {
-        slot[t.index as usize] = i as u32;
-    }
+    // Texels are in row-major atlas order: a neighbour is found by binary
+    // search (a lookup table would take 1 GiB at 16384²).
     let at = |t: &Texel, dx: i64, dy: i64| -> Option<usize> {
         let (x, y) = (t.x(texels.width) as i64 + dx, t.y(texels.width) as i64 + dy);
         if x < 0 || y < 0 || x >= width || y >= height {
             return None;
         }
-        let j = slot[(x + y * width) as usize];
-        (j != u32::MAX).then_some(j as usize)
+        texels.texels.binary_search_by_key(&((x + y * width) as u32), |n| n.index).ok()
     };
     let level: Vec<f64> = irradiance.iter().map(|&e| luminance(e)).collect();
     let peak = level.iter().cloned().fold(0.0f64, f64::max);
