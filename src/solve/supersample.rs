@@ -4,7 +4,7 @@
 //! stair-stepped (issue 6, "a texel's value represents its footprint").
 //!
 //! After the direct pass, a texel is flagged when its direct irradiance
-//! differs from an atlas neighbour's by more than `EDGE_CONTRAST`, and it
+//! bends sharply across it (second difference over `EDGE_CONTRAST`), and it
 //! lies inside its chart (all eight neighbours are covered texels of the same
 //! chart, facing within `SAME_SURFACE_COS`): its footprint is then all
 //! surface, mapped to the world by the central differences of its
@@ -27,9 +27,9 @@ use crate::texelize::{Texel, TexelSet};
 /// of an 8 × 8 grid, so a straight edge at any angle steps in eighths.
 const PATTERN: [[f32; 2]; 8] =
     [[1.0, -3.0], [-1.0, 3.0], [5.0, 1.0], [-3.0, -5.0], [-5.0, 5.0], [-7.0, -1.0], [3.0, 7.0], [7.0, -7.0]];
-/// Relative difference of direct irradiance between atlas neighbours above
-/// which both are gathered at sub-samples: a penumbra several texels wide
-/// changes less per texel and is already smooth.
+/// Second difference of direct irradiance along an atlas row or column,
+/// over the largest of the three texels, above which the middle one is
+/// gathered at sub-samples.
 pub const EDGE_CONTRAST: f64 = 0.2;
 /// Neighbours whose normals turn further than this (cosine) are not the
 /// same smooth surface: the footprint would not be flat across them.
@@ -67,16 +67,22 @@ pub fn plan(scene: &Scene, texels: &TexelSet, irradiance: &[[f32; 3]]) -> Option
     if peak <= 0.0 {
         return None;
     }
+    // Bent, not sloped: a texel's mean over its square is its centre's value
+    // wherever the light changes linearly across it (a penumbra several
+    // texels wide), so only a kink or a step (second difference) needs
+    // sub-samples.
     let flagged: Vec<usize> = (0..texels.texels.len())
         .filter(|&i| {
             let t = &texels.texels[i];
             t.area > 0.0
-                && [(1, 0), (-1, 0), (0, 1), (0, -1)].iter().any(|&(dx, dy)| {
-                    at(t, dx, dy).is_some_and(|j| {
-                        let (a, b) = (level[i], level[j]);
-                        // Far below the brightest texel, a difference is invisible.
-                        a.max(b) > 1e-6 * peak && (a - b).abs() > EDGE_CONTRAST * a.max(b)
-                    })
+                && [(1, 0), (0, 1)].iter().any(|&(dx, dy)| {
+                    let (Some(before), Some(after)) = (at(t, -dx, -dy), at(t, dx, dy)) else {
+                        return false;
+                    };
+                    let (a, b, c) = (level[before], level[i], level[after]);
+                    let top = a.max(b).max(c);
+                    // Far below the brightest texel, a difference is invisible.
+                    top > 1e-6 * peak && (a - 2.0 * b + c).abs() > EDGE_CONTRAST * top
                 })
         })
         .collect();
