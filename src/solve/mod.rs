@@ -38,12 +38,7 @@ pub struct SolveOptions {
 
 impl Default for SolveOptions {
     fn default() -> Self {
-        SolveOptions {
-            shadow_map_size: None,
-            batch_size: 64,
-            supersample: std::env::var("NOSS").is_err(),
-            bounce: BounceOptions::default(),
-        }
+        SolveOptions { shadow_map_size: None, batch_size: 64, supersample: true, bounce: BounceOptions::default() }
     }
 }
 
