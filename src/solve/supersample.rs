@@ -30,7 +30,7 @@ const PATTERN: [[f32; 2]; 8] =
 /// Second difference of direct irradiance along an atlas row or column,
 /// over the largest of the three texels, above which the middle one is
 /// gathered at sub-samples.
-pub const EDGE_CONTRAST: f64 = 0.2;
+const EDGE_CONTRAST: f64 = 0.2;
 /// Neighbours whose normals turn further than this (cosine) are not the
 /// same smooth surface: the footprint would not be flat across them.
 const SAME_SURFACE_COS: f32 = 0.9;
@@ -43,7 +43,8 @@ const LIFT_TEXELS: f64 = 0.05;
 pub struct Plan {
     /// One texel per sub-sample: the owner's data at the sub-sample's position.
     pub samples: TexelSet,
-    /// Index into the original `TexelSet` of each sub-sample's texel.
+    /// Index into the original `TexelSet` of each sub-sample's texel (a
+    /// texel's sub-samples are consecutive).
     pub owner: Vec<u32>,
     /// Texels flagged (some may keep only part of their sub-samples).
     pub texels: usize,
@@ -141,15 +142,12 @@ pub fn plan(scene: &Scene, texels: &TexelSet, irradiance: &[[f32; 3]]) -> Option
 /// Replaces each flagged texel's irradiance with the mean of its
 /// sub-samples' (`gathered`, in `plan.samples` order).
 pub fn fold(plan: &Plan, gathered: &[[f32; 3]], irradiance: &mut [[f32; 3]]) {
-    let mut sums: std::collections::BTreeMap<u32, ([f64; 3], u32)> = Default::default();
-    for (&i, e) in plan.owner.iter().zip(gathered) {
-        let (sum, n) = sums.entry(i).or_default();
-        for c in 0..3 {
-            sum[c] += e[c] as f64;
-        }
-        *n += 1;
-    }
-    for (i, (sum, n)) in sums {
-        irradiance[i as usize] = sum.map(|s| (s / n as f64) as f32);
+    // A texel's sub-samples are consecutive.
+    let mut first = 0;
+    for run in plan.owner.chunk_by(|a, b| a == b) {
+        let samples = &gathered[first..first + run.len()];
+        first += run.len();
+        let mean = |c: usize| (samples.iter().map(|e| e[c] as f64).sum::<f64>() / samples.len() as f64) as f32;
+        irradiance[run[0] as usize] = [mean(0), mean(1), mean(2)];
     }
 }
