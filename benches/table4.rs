@@ -89,6 +89,9 @@ struct Args {
     /// Grid bakes without the supersample fix-up (its cost is the difference).
     #[arg(long)]
     no_supersample: bool,
+    /// Shooter patches of the grid bakes' bounce pass (`bake --patches`).
+    #[arg(long, default_value_t = bake::solve::BounceOptions::default().patches)]
+    patches: u32,
     /// Passed by `cargo bench`; ignored.
     #[arg(long, hide = true)]
     bench: bool,
@@ -296,6 +299,7 @@ fn grid(gpu: &Gpu, args: &Args, statues: &Statues, map: &Arc<EnvironmentMap>) ->
         let mut options = BakeOptions::default();
         options.unwrap.max_atlas_size = size;
         options.solve.supersample = !args.no_supersample;
+        options.solve.bounce.patches = args.patches;
         // The reference at texels of this atlas size (every cell of the size bakes the same texels).
         let probes = if args.reference_texels > 0 {
             let scene = statues.scene()?;

@@ -40,6 +40,15 @@
 @group(0) @binding(8) var<storage, read_write> partials: array<f32>;
 // 1 where the hemicube sees a surface's front (the depth atlas's companion).
 @group(0) @binding(9) var front: texture_2d<f32>;
+// Receivers with a shooter of the batch in their near field, listed by
+// `main` for `near_field` (the list's order varies; each texel's sum does not).
+@group(0) @binding(10) var<storage, read_write> near_list: NearList;
+
+struct NearList {
+    count: atomic<u32>,
+    // (texel index, bit k set for each shooter slot k in whose near field it is)
+    entries: array<vec2<u32>>,
+}
 
 const MAX_SHOOTERS: u32 = 64u;
 // Texels one measure workgroup sums (64 invocations × 64 texels).
@@ -167,11 +176,23 @@ fn visible_from_shooter(
 }
 
 // F_ij from shooter `s` in slot `k` to receiver `texel` (not of the
-// shooter's own patch), with visibility from the slot's hemicube; 0 where
-// the receiver does not see the shooter's front. In x when the receiver is
-// in the near field (exact polygon form factor), in y when it is not
-// (point form factor, the part the normalization scales).
+// shooter's own patch): in x when the receiver is in the near field (exact
+// polygon form factor), in y when it is not (point form factor, the part the
+// normalization scales).
 fn shot_form_factor(texel: Texel, s: Shooter, k: u32) -> vec2f {
+    let g = shot_geometry(texel, s, k);
+    if (g.x > 0.0) {
+        let p = texel.position + texel.face_normal * params.receiver_offset;
+        return vec2f(near_form_factor(p, texel, s), 0.0);
+    }
+    return g;
+}
+
+// Whether receiver `texel` sees shooter `s` (slot `k`, visibility from its
+// hemicube; 0 where the receiver does not see the shooter's front), and how:
+// x = 1 in the near field, where the exact polygon form factor is needed;
+// else y is the point form factor.
+fn shot_geometry(texel: Texel, s: Shooter, k: u32) -> vec2f {
     // Everything is taken half a texel off the surface, which keeps
     // receivers in the shooter's own plane out (behind it) and its own
     // depth from hiding the receiver. What the offset costs (a receiver
@@ -217,16 +238,23 @@ fn shot_form_factor(texel: Texel, s: Shooter, k: u32) -> vec2f {
     }
 
     if (r < NEAR_FIELD * s.radius) {
-        // Close to the shooter the disc formula fails (a floor texel next
-        // to a wall would miss most of the wall): integrate its
-        // parallelogram exactly, scaled to the patch's true area.
-        let near = parallelogram_form_factor(p, texel.normal, s.rect_centre, s.half_u, s.half_v)
-            * min(s.area / max(s.rect_area, 1e-30), 1.0);
-        return vec2f(near, 0.0);
+        return vec2f(1.0, 0.0);
     }
     return vec2f(0.0, cos_i * (height / r) * s.area / (PI * r2));
 }
 
+// Close to the shooter the disc formula fails (a floor texel next to a wall
+// would miss most of the wall): its parallelogram is integrated exactly,
+// scaled to the patch's true area. From the receiver's test point `p`.
+fn near_form_factor(p: vec3f, texel: Texel, s: Shooter) -> f32 {
+    return parallelogram_form_factor(p, texel.normal, s.rect_centre, s.half_u, s.half_v)
+        * min(s.area / max(s.rect_area, 1e-30), 1.0);
+}
+
+// The far field of every receiver; receivers in some shooter's near field
+// are listed for `near_field`. A CPU driver runs both sides of every branch
+// for all lanes, so the exact polygon form factor, needed by a few texels
+// near each shooter, would otherwise cost every texel-shooter pair.
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     // Shooters are read once per workgroup into shared memory.
@@ -242,6 +270,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_
     let own_patch = texel_patch[i];
     var gathered = vec3f(0.0);
     var shot = false;
+    var near_slots = 0u;
     for (var k = 0u; k < params.shooter_count; k++) {
         let s = batch[k];
         if (s.patch_index == NO_TRIANGLE) {
@@ -251,8 +280,12 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_
             shot = true;
             continue;
         }
-        let form_factor = shot_form_factor(texel, s, k);
-        gathered += (form_factor.x + form_factor.y * patch_scale[s.patch_index]) * s.radiance;
+        let g = shot_geometry(texel, s, k);
+        if (g.x > 0.0) {
+            near_slots |= 1u << k;
+        } else {
+            gathered += g.y * patch_scale[s.patch_index] * s.radiance;
+        }
     }
     lightmap[i] += vec4f(gathered, 0.0);
     var remaining = unshot[i].rgb;
@@ -260,6 +293,30 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_
         remaining = vec3f(0.0);
     }
     unshot[i] = vec4f(remaining + texel.albedo * gathered, luminance(gathered) * texel.area);
+    if (near_slots != 0u) {
+        near_list.entries[atomicAdd(&near_list.count, 1u)] = vec2<u32>(i, near_slots);
+    }
+}
+
+// The listed receivers' near-field light, added after `main`'s far field,
+// in slot order: the same sums whatever order the list is in.
+@compute @workgroup_size(64)
+fn near_field(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let j = id.x + id.y * groups.x * 64u;
+    if (j >= atomicLoad(&near_list.count)) {
+        return;
+    }
+    let entry = near_list.entries[j];
+    let i = entry.x;
+    let texel = texels[i];
+    let p = texel.position + texel.face_normal * params.receiver_offset;
+    var gathered = vec3f(0.0);
+    for (var slots = entry.y; slots != 0u; slots &= slots - 1u) {
+        let s = shooters[firstTrailingBit(slots)];
+        gathered += near_form_factor(p, texel, s) * s.radiance;
+    }
+    lightmap[i] += vec4f(gathered, 0.0);
+    unshot[i] += vec4f(texel.albedo * gathered, luminance(gathered) * texel.area);
 }
 
 var<workgroup> sums: array<f32, 64>;

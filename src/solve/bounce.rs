@@ -227,6 +227,8 @@ struct Resources {
     patch_scale: wgpu::Buffer,
     /// Near- and far-field sums of the measure pass per shooter slot and texel chunk.
     partials: wgpu::Buffer,
+    /// Receivers in a shooter's near field: a count, then (texel, slots) pairs.
+    near_list: wgpu::Buffer,
     depth_view: wgpu::TextureView,
     front_view: wgpu::TextureView,
     casters: Casters,
@@ -240,7 +242,9 @@ struct Pipelines {
     /// The form-factor normalization (measure, then finish); they share the shots' bind group.
     measure: wgpu::ComputePipeline,
     finish: wgpu::ComputePipeline,
+    /// The far field of every receiver, then the near field of those `main` listed.
     shoot: (wgpu::ComputePipeline, wgpu::BindGroup),
+    near_field: wgpu::ComputePipeline,
 }
 
 /// Shoots until converged or out of budget. `lightmap` holds L_lm after the
@@ -381,6 +385,7 @@ pub fn run(
         }
 
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        encoder.clear_buffer(&resources.near_list, 0, Some(8));
         render_hemicubes(&mut encoder, &pipelines, &resources, shooter_count, face, tiles_per_row);
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
@@ -395,6 +400,19 @@ pub fn run(
             pass.dispatch_workgroups(groups_x, groups_y, 1);
         }
         gpu.queue.submit([encoder.finish()]);
+        // The near field only for the receivers listed (a few per shooter).
+        let listed = read_buffer::<u32>(gpu, &resources.near_list, 1)?[0];
+        if listed > 0 {
+            let (near_x, near_y) = gpu.dispatch_size(listed, 64);
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            {
+                let mut pass = encoder.begin_compute_pass(&Default::default());
+                pass.set_bind_group(0, &pipelines.shoot.1, &[]);
+                pass.set_pipeline(&pipelines.near_field);
+                pass.dispatch_workgroups(near_x, near_y, 1);
+            }
+            gpu.queue.submit([encoder.finish()]);
+        }
         shots += stats.shooters as u64;
         shot_total += stats.shot[3] as f64;
         batches += 1;
@@ -535,6 +553,13 @@ fn resources(
             &vec![0f32; (2 * MAX_SHOOTERS * params.chunk_count) as usize],
             none,
         ),
+        near_list: gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("solve_shoot near-field receivers"),
+            // A count (padded to 8 bytes), then at most one entry per texel.
+            size: 8 + 8 * texels.texels.len().max(1) as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        }),
         depth_view: depth.create_view(&Default::default()),
         front_view: front.create_view(&Default::default()),
         casters: Casters::new(gpu, scene),
@@ -636,6 +661,8 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             gpu::storage_entry(8, false, compute),
             // 9: where the hemicubes see a surface's front
             gpu::texture_2d_entry(9, compute, wgpu::TextureSampleType::Float { filterable: false }),
+            // 10: receivers in a shooter's near field (listed, then gathered)
+            gpu::storage_entry(10, false, compute),
         ],
     );
     let shoot_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -652,6 +679,7 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             wgpu::BindGroupEntry { binding: 7, resource: r.patch_scale.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 8, resource: r.partials.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 9, resource: wgpu::BindingResource::TextureView(&r.front_view) },
+            wgpu::BindGroupEntry { binding: 10, resource: r.near_list.as_entire_binding() },
         ],
     });
 
@@ -688,6 +716,7 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
         measure: gpu.compute_pipeline(Shader::SolveShoot, "measure", &[&shoot_layout]),
         finish: gpu.compute_pipeline(Shader::SolveShoot, "finish", &[&shoot_layout]),
         shoot: (gpu.compute_pipeline(Shader::SolveShoot, "main", &[&shoot_layout]), shoot_group),
+        near_field: gpu.compute_pipeline(Shader::SolveShoot, "near_field", &[&shoot_layout]),
     }
 }
 
