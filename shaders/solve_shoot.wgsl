@@ -3,7 +3,9 @@
 //     L_lm,i += F_ij ΔL_j,   L_i, ΔL_i += ρ_i F_ij ΔL_j,
 // with visibility from the shooter's hemicube. Texels of a patch that shot
 // have their unshot light cleared. Gathering per texel in a fixed order
-// keeps bakes identical run to run.
+// keeps bakes identical run to run: `main` sums the far field over the
+// batch's shooters, then `near_field` the near field of the receivers `main`
+// listed, each in slot order.
 //
 // The form factor: the seed's bounded disc formula (its eq. 2)
 //     F_ij = cos θ_i cos θ_j A_j / (π r² + A_j)

@@ -6,8 +6,10 @@
 //! (`solve_patch_power`), pick the K largest (`solve_select`), render a
 //! hemicube depth map from each (`solve_hemicube`), and let every texel
 //! gather from the K shooters with the seed's bounded form factor
-//! (`solve_shoot`). Only a 64-byte summary comes back per batch, to decide
-//! whether to stop and to record the convergence trace.
+//! (`solve_shoot`: the far field for every texel, then the exact near field
+//! for the few texels next to a shooter, which `main` lists). Only a 64-byte
+//! summary and the list's length come back per batch, to decide whether to
+//! stop, record the convergence trace and size the near-field pass.
 //!
 //! The first time a patch shoots, its form factors are normalized: the
 //! `measure` and `finish` entry points of `solve_shoot` sum them over every
