@@ -84,12 +84,13 @@ fn lit_at_depth(at: vec2f, r: Receiver, z: f32) -> bool {
     if (z <= stored + r.bias) {
         return true;
     }
-    return on_receiver_plane(cell, stored, r);
+    return on_receiver_plane(cell, stored, neighbour_depths(vec2<i32>(cell), r.tile), r);
 }
 
-// Whether the surface the depth map holds at texel `cell` (depth `stored`)
-// is the receiver's own plane.
-fn on_receiver_plane(cell: vec2f, stored: f32, r: Receiver) -> bool {
+// Whether the surface the depth map holds at texel `cell` (depth `stored`,
+// its neighbours' `n` as `neighbour_depths` gives them) is the receiver's
+// own plane.
+fn on_receiver_plane(cell: vec2f, stored: f32, n: vec4f, r: Receiver) -> bool {
     let size = params.map_size;
     // Only a plane facing the light can be the receiver seen from it (from
     // behind, a zero-thickness wall stands between them).
@@ -109,7 +110,6 @@ fn on_receiver_plane(cell: vec2f, stored: f32, r: Receiver) -> bool {
     // surface meeting it (a floor under a wall): their depths agree along
     // the line where they meet. The stored surface's slope on both sides of
     // this texel must be the receiver's: at such a junction one side is not.
-    let n = neighbour_depths(vec2<i32>(cell), r.tile);
     let mine = vec3f(r.slope * size, -1.0);
     return same_slope(mine, vec2f(n.y - stored, n.w - stored) * size)
         && same_slope(mine, vec2f(stored - n.x, stored - n.z) * size);
@@ -157,7 +157,7 @@ fn inside_solid(at: vec2f, r: Receiver, z: f32, step_depth: f32) -> bool {
     if (z <= stored + r.bias - across) {
         return false;
     }
-    if (on_receiver_plane(vec2f(cell), stored, r)) {
+    if (on_receiver_plane(vec2f(cell), stored, n, r)) {
         return false;
     }
     let back = textureLoad(second_layer, cell + r.tile, 0);
