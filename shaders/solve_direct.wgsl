@@ -135,33 +135,39 @@ fn same_slope(mine: vec3f, theirs: vec2f) -> bool {
     return dot(mine, other) >= 0.9 * length(mine) * length(other);
 }
 
-// Whether a shadow ray's point `at` at depth `z` lies inside the solid the
-// depth maps bound there: behind the first surface (and not the receiver's
-// own plane, as `lit_at_depth`) and in front of the second, within the
-// ray's depth step plus the first surface's own depth change across a
-// texel (a ray crossing a thin slab between two points still has one
-// point inside). A point behind the second layer passes behind the
+// Whether a shadow ray's point `at` at depth `z` is clear of the scene.
+// A point at the end of a ray (`interior` false) is clear in front of the
+// first surface the depth map holds there, or on the receiver's own plane
+// (as `lit_at_depth`). A point inside a marched ray (`interior`) is clear
+// unless it lies inside the solid the depth maps bound there: behind the
+// first surface (and not the receiver's plane) and in front of the second,
+// within the ray's depth step plus the first surface's own depth change
+// across a texel (a ray crossing a thin slab between two points still has
+// one point inside). A point behind the second layer passes behind the
 // object, as a ray from the shadow of a post passes beside the post.
-fn inside_solid(at: vec2f, r: Receiver, z: f32, step_depth: f32) -> bool {
+fn ray_point_clear(at: vec2f, r: Receiver, z: f32, interior: bool, step_depth: f32) -> bool {
     let size = params.map_size;
     let cell = vec2<i32>(clamp(floor(at), vec2f(0.0), vec2f(size - 1.0)));
     let stored = textureLoad(depth_maps, cell + r.tile, 0);
     let n = neighbour_depths(cell, r.tile);
     // The surface's depth change across a texel, from its smoother side: at
-    // a silhouette the other side is another surface.
-    let across = max(min(abs(n.y - stored), abs(stored - n.x)), min(abs(n.w - stored), abs(stored - n.z)));
-    // In front of the surface over its whole texel: clear. Within the
-    // texel's depth range (a surface seen at a grazing angle spans many
-    // texels of depth) the point may be on either side: not clear, unless
-    // the surface is the receiver's own plane.
+    // a silhouette the other side is another surface. Inside a march, a
+    // point within the texel's depth range (a surface seen at a grazing
+    // angle spans many texels of depth) may be on either side: not clear,
+    // unless the surface is the receiver's own plane.
+    let across = select(
+        0.0,
+        max(min(abs(n.y - stored), abs(stored - n.x)), min(abs(n.w - stored), abs(stored - n.z))),
+        interior,
+    );
     if (z <= stored + r.bias - across) {
-        return false;
+        return true;
     }
     if (on_receiver_plane(vec2f(cell), stored, n, r)) {
-        return false;
+        return true;
     }
     let back = textureLoad(second_layer, cell + r.tile, 0);
-    return z <= back + step_depth + across + r.bias;
+    return interior && !(z <= back + step_depth + across + r.bias);
 }
 
 // Depth of the first surface at the centre of the texel holding `at`.
@@ -175,7 +181,7 @@ fn stored_depth(at: vec2f, tile: vec2<i32>) -> f32 {
 // blocker; where the light is wide enough for its rays to spread further, a
 // second, wider search finds the farthest. Penumbrae up to PCF_LIMIT texels
 // are filtered (percentage-closer soft shadows); wider ones are marched,
-// ray by ray, through both depth layers (`marched_visibility`).
+// ray by ray, through both depth layers (`ray_visibility`).
 fn light_visibility(r: Receiver, tan_alpha: f32, spin: f32) -> f32 {
     let size = params.map_size;
     // Sideways shadow-map texels a rim ray moves per unit of depth.
@@ -224,59 +230,60 @@ fn light_visibility(r: Receiver, tan_alpha: f32, spin: f32) -> f32 {
     // walls seen edge-on, which matters most there.
     let nearest_span = (r.z - nearest) * depth_to_texels;
     if (span <= PCF_LIMIT || nearest_span <= PCF_LIMIT) {
-        return filtered_visibility(r, nearest_span, nearest, spin);
+        return ray_visibility(r, false, clamp(nearest_span, 0.5, PCF_LIMIT), nearest, spin);
     }
-    return marched_visibility(r, min(span, MAX_MARCH), depth_to_texels, spin);
+    let march_span = min(span, MAX_MARCH);
+    return ray_visibility(r, true, march_span, r.z - march_span / depth_to_texels, spin);
 }
 
-// Percentage-closer soft shadows (Fernando 2005), for penumbrae at most
-// PCF_LIMIT texels wide: a filter as wide as the penumbra the nearest
-// blocker (deepest stored depth) casts. The nearest, not an average: an
-// average would let a far blocker widen the filter of a receiver that a
-// near one (a wall beside it) already shades, and light would leak in.
-fn filtered_visibility(r: Receiver, nearest_span: f32, blocker_depth: f32, spin: f32) -> f32 {
-    let penumbra = clamp(nearest_span, 0.5, PCF_LIMIT);
-    // Each tap stands for a ray from the receiver that reaches the blocker's
-    // depth at the tap: it must clear what lies on its way there too. (The
-    // tap alone would see past a floor seen edge-on, a band a texel or two
-    // wide, into a sealed room; with taps at most PCF_LIMIT texels out,
-    // three points on the way are a texel apart.)
+// The share of MAX_RAYS shadow rays, spread over the light's disc, that
+// reach the light. One loop serves both kinds of ray, so that a CPU driver,
+// which runs every branch for every lane, pays for one of them.
+//
+// Filtered (`march` false): percentage-closer soft shadows (Fernando 2005)
+// for penumbrae at most PCF_LIMIT texels wide, a filter as wide as the
+// penumbra the nearest blocker casts (`end_depth`, the deepest stored
+// depth): an average would let a far blocker widen the filter of a
+// receiver that a near one (a wall beside it) already shades, and light
+// would leak in. Each tap stands for a ray from the receiver that reaches
+// the blocker's depth at the tap, and must clear what lies on its way there
+// too: the tap alone would see past a floor seen edge-on, a band a texel or
+// two wide, into a sealed room. With taps at most PCF_LIMIT texels out,
+// three points on the way are a texel apart.
+//
+// Marched (`march`): wider penumbrae. Each ray is marched through both
+// depth layers from the receiver to the farthest blocker's depth
+// (`end_depth`, nearer if the march would leave MAX_MARCH), and is lit if
+// no point of it lies inside a solid. A long blocker (a post) then gives
+// each ray the depth it meets, and a ray from the middle of its shadow may
+// pass behind it: the penumbra widens away from the contact and the core
+// lightens, as they do.
+fn ray_visibility(r: Receiver, march: bool, radius: f32, end_depth: f32, spin: f32) -> f32 {
     var lit = 0.0;
     for (var j = 0u; j < MAX_RAYS; j++) {
-        let offset = spiral(j, MAX_RAYS, spin + 1.0) * penumbra;
-        if (lit_at(r.pixel + offset, r)
-            && lit_at_depth(r.pixel + 0.25 * offset, r, mix(r.z, blocker_depth, 0.25))
-            && lit_at_depth(r.pixel + 0.5 * offset, r, mix(r.z, blocker_depth, 0.5))
-            && lit_at_depth(r.pixel + 0.75 * offset, r, mix(r.z, blocker_depth, 0.75))) {
-            lit += 1.0;
-        }
-    }
-    return lit / f32(MAX_RAYS);
-}
-
-// Wider penumbrae: rays spread over the light's disc are marched through
-// both depth layers from the receiver to the farthest blocker's depth
-// (nearer, if the march would leave MAX_MARCH), each lit if no point of it
-// lies inside a solid. A long blocker (a post) then gives each ray the depth
-// it meets, and a ray from the middle of its shadow may pass behind it: the
-// penumbra widens away from the contact and the core lightens, as they do.
-fn marched_visibility(r: Receiver, span: f32, depth_to_texels: f32, spin: f32) -> f32 {
-    let end_depth = r.z - span / depth_to_texels;
-    var lit = 0.0;
-    for (var j = 0u; j < MAX_RAYS; j++) {
-        let offset = spiral(j, MAX_RAYS, spin + 1.0) * span;
+        let offset = spiral(j, MAX_RAYS, spin + 1.0) * radius;
+        // A march's points are MARCH_SPACING apart from the receiver itself
+        // (a surface just above it, such as the side of a box it stands
+        // under, is crossed before the first step), then its end.
         let steps = max(2u, u32(ceil(length(offset) / MARCH_SPACING)));
         let step_depth = (r.z - end_depth) / f32(steps);
-        // From the receiver itself (a surface just above it, such as the
-        // side of a box it stands under, is crossed before the first step).
+        let points = select(4u, steps + 1u, march);
         var clear = true;
-        for (var s = 0u; s < steps && clear; s++) {
-            let t = f32(s) / f32(steps);
-            clear = !inside_solid(r.pixel + t * offset, r, mix(r.z, end_depth, t), step_depth);
+        for (var s = 0u; s < points && clear; s++) {
+            // The filter's points: a quarter, half and three quarters of the
+            // way to the blocker, then the tap at the receiver's depth.
+            var t = f32(s + 1u) * 0.25;
+            var z = select(mix(r.z, end_depth, t), r.z, s == 3u);
+            if (march) {
+                t = f32(s) / f32(steps);
+                // The last point sees, along the light's own direction, all
+                // that lies beyond the blockers the search found.
+                z = select(mix(r.z, end_depth, t), end_depth, s == steps);
+            }
+            let at = select(r.pixel + t * offset, r.pixel + offset, t == 1.0);
+            clear = ray_point_clear(at, r, z, march && s < steps, step_depth);
         }
-        // The last point sees, along the light's own direction, all that
-        // lies beyond the blockers the search found.
-        if (clear && lit_at_depth(r.pixel + offset, r, end_depth)) {
+        if (clear) {
             lit += 1.0;
         }
     }
