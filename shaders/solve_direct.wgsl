@@ -78,13 +78,31 @@ fn lit_at(at: vec2f, r: Receiver) -> bool {
 // As `lit_at`, for a point of the ray from the receiver at depth `z` rather
 // than the receiver itself.
 fn lit_at_depth(at: vec2f, r: Receiver, z: f32) -> bool {
-    let size = params.map_size;
-    let cell = clamp(floor(at), vec2f(0.0), vec2f(size - 1.0));
-    let stored = textureLoad(depth_maps, vec2<i32>(cell) + r.tile, 0);
+    let cell = map_cell(at);
+    return lit_by(cell, textureLoad(depth_maps, cell + r.tile, 0), r, z);
+}
+
+// The depth of the surface the depth map holds at `at`, where it blocks
+// the receiver (as `lit_at`), or −1 where the receiver is lit there.
+fn blocker_at(at: vec2f, r: Receiver) -> f32 {
+    let cell = map_cell(at);
+    let stored = textureLoad(depth_maps, cell + r.tile, 0);
+    return select(stored, -1.0, lit_by(cell, stored, r, r.z));
+}
+
+// Whether a point at depth `z` is lit past the surface the depth map holds
+// at texel `cell`, depth `stored` (as `lit_at_depth`).
+fn lit_by(cell: vec2<i32>, stored: f32, r: Receiver, z: f32) -> bool {
     if (z <= stored + r.bias) {
         return true;
     }
-    return on_receiver_plane(cell, stored, neighbour_depths(vec2<i32>(cell), r.tile), r);
+    return on_receiver_plane(vec2f(cell), stored, neighbour_depths(cell, r.tile), r);
+}
+
+// The shadow-map texel holding `at` (pixel units), clamped to the map.
+fn map_cell(at: vec2f) -> vec2<i32> {
+    let size = params.map_size;
+    return vec2<i32>(clamp(floor(at), vec2f(0.0), vec2f(size - 1.0)));
 }
 
 // Whether the surface the depth map holds at texel `cell` (depth `stored`,
@@ -146,8 +164,7 @@ fn same_slope(mine: vec3f, theirs: vec2f) -> bool {
 // one point inside). A point behind the second layer passes behind the
 // object, as a ray from the shadow of a post passes beside the post.
 fn ray_point_clear(at: vec2f, r: Receiver, z: f32, interior: bool, step_depth: f32) -> bool {
-    let size = params.map_size;
-    let cell = vec2<i32>(clamp(floor(at), vec2f(0.0), vec2f(size - 1.0)));
+    let cell = map_cell(at);
     let stored = textureLoad(depth_maps, cell + r.tile, 0);
     let n = neighbour_depths(cell, r.tile);
     // The surface's depth change across a texel, from its smoother side: at
@@ -168,12 +185,6 @@ fn ray_point_clear(at: vec2f, r: Receiver, z: f32, interior: bool, step_depth: f
     }
     let back = textureLoad(second_layer, cell + r.tile, 0);
     return interior && !(z <= back + step_depth + across + r.bias);
-}
-
-// Depth of the first surface at the centre of the texel holding `at`.
-fn stored_depth(at: vec2f, tile: vec2<i32>) -> f32 {
-    let size = params.map_size;
-    return textureLoad(depth_maps, vec2<i32>(clamp(floor(at), vec2f(0.0), vec2f(size - 1.0))) + tile, 0);
 }
 
 // How much of a distant light of angular radius atan(tan_alpha) reaches the
@@ -198,9 +209,10 @@ fn light_visibility(r: Receiver, tan_alpha: f32, spin: f32) -> f32 {
     for (var j = 0u; j <= MIN_SEARCH_TAPS; j++) {
         // Tap MIN_SEARCH_TAPS is the centre.
         let at = r.pixel + select(spiral(j, MIN_SEARCH_TAPS, spin) * near_search, vec2f(0.0), j == MIN_SEARCH_TAPS);
-        if (!lit_at(at, r)) {
+        let blocker = blocker_at(at, r);
+        if (blocker >= 0.0) {
             near_blocked = true;
-            nearest = max(nearest, stored_depth(at, r.tile));
+            nearest = max(nearest, blocker);
         }
     }
     if (!near_blocked) {
@@ -218,8 +230,9 @@ fn light_visibility(r: Receiver, tan_alpha: f32, spin: f32) -> f32 {
         var farthest = r.z;
         for (var j = 0u; j < search_taps; j++) {
             let at = r.pixel + spiral(j, search_taps, spin + 2.0) * search;
-            if (!lit_at(at, r)) {
-                farthest = min(farthest, stored_depth(at, r.tile));
+            let blocker = blocker_at(at, r);
+            if (blocker >= 0.0) {
+                farthest = min(farthest, blocker);
             }
         }
         farthest = min(farthest, nearest);
