@@ -180,40 +180,37 @@ fn hemicube_origin(s: Shooter) -> vec3f {
 // Hemicube faces: 0 along the normal, 1..4 the half faces around it
 // (+t, −t, +b, −b). Returns (u, v, forward) with u, v in [−1, 1] across the
 // face's viewport; for half faces v spans only the half above the shooter's
-// plane. Used by the depth render and by receivers, so both agree exactly.
+// plane. The depth render and receivers both go through
+// `hemicube_face_frame`, so they agree exactly.
 fn hemicube_face(local: vec3f, face: u32) -> vec3f {
-    switch face {
-        case 0u: { return vec3f(local.x / local.z, local.y / local.z, local.z); }
-        case 1u: { return vec3f(local.y / local.x, 2.0 * local.z / local.x - 1.0, local.x); }
-        case 2u: { return vec3f(local.y / -local.x, 2.0 * local.z / -local.x - 1.0, -local.x); }
-        case 3u: { return vec3f(local.x / local.y, 2.0 * local.z / local.y - 1.0, local.y); }
-        default: { return vec3f(local.x / -local.y, 2.0 * local.z / -local.y - 1.0, -local.y); }
-    }
+    let f = hemicube_face_frame(local, face);
+    let v = select(2.0 * f.y / f.z - 1.0, f.y / f.z, face == 0u);
+    return vec3f(f.x / f.z, v, f.z);
+}
+
+// `local` in `face`'s frame: (across, up, forward).
+fn hemicube_face_frame(local: vec3f, face: u32) -> vec3f {
+    // Faces 1 and 2 look along ±t, 3 and 4 along ±b; 2 and 4 backwards.
+    let sideways = select(vec3f(local.y, local.z, local.x), vec3f(local.x, local.z, local.y), face >= 3u);
+    let side = select(sideways, sideways * vec3f(1.0, 1.0, -1.0), face == 2u || face == 4u);
+    return select(side, local, face == 0u);
 }
 
 // The face a direction (in the shooter's frame, local.z > 0) falls on.
 fn hemicube_face_of(local: vec3f) -> u32 {
     let a = abs(local);
-    if (local.z >= a.x && local.z >= a.y) {
-        return 0u;
-    }
-    if (a.x >= a.y) {
-        return select(2u, 1u, local.x > 0.0);
-    }
-    return select(4u, 3u, local.y > 0.0);
+    let side = select(select(4u, 3u, local.y > 0.0), select(2u, 1u, local.x > 0.0), a.x >= a.y);
+    return select(side, 0u, local.z >= a.x && local.z >= a.y);
 }
 
 // Top-left texel and size of `face` of hemicube `slot` in the depth atlas.
 // A hemicube tile is 3S × S: the top face, then ±t stacked, then ±b stacked.
 fn hemicube_viewport(slot: u32, face: u32, size: f32, tiles_per_row: u32) -> vec4f {
     let tile = vec2f(f32(slot % tiles_per_row) * 3.0 * size, f32(slot / tiles_per_row) * size);
-    switch face {
-        case 0u: { return vec4f(tile, size, size); }
-        case 1u: { return vec4f(tile + vec2f(size, 0.0), size, 0.5 * size); }
-        case 2u: { return vec4f(tile + vec2f(size, 0.5 * size), size, 0.5 * size); }
-        case 3u: { return vec4f(tile + vec2f(2.0 * size, 0.0), size, 0.5 * size); }
-        default: { return vec4f(tile + vec2f(2.0 * size, 0.5 * size), size, 0.5 * size); }
-    }
+    let column = f32((face + 1u) / 2u) * size;
+    let lower = face != 0u && face % 2u == 0u;
+    let corner = tile + vec2f(column, select(0.0, 0.5 * size, lower));
+    return vec4f(corner, size, select(0.5 * size, size, face == 0u));
 }
 
 // --- materials (mirrors gpu::materials) ---

@@ -18,19 +18,13 @@ fn vs_hemicube(in: CasterIn, @builtin(instance_index) instance: u32) -> CasterOu
     let m = basis(shooter.normal);
     let d = position - hemicube_origin(shooter);
     let local = vec3f(dot(d, m[0]), dot(d, m[1]), dot(d, m[2]));
-    var w: f32;
-    var x: f32;
-    var y: f32;
-    switch face {
-        case 0u: { w = local.z; x = local.x; y = local.y; }
-        case 1u: { w = local.x; x = local.y; y = 2.0 * local.z - w; }
-        case 2u: { w = -local.x; x = local.y; y = 2.0 * local.z - w; }
-        case 3u: { w = local.y; x = local.x; y = 2.0 * local.z - w; }
-        default: { w = -local.y; x = local.x; y = 2.0 * local.z - w; }
-    }
+    // The face's frame, as receivers project into it (`hemicube_face`): a
+    // half face's viewport holds only the upper half of its frustum.
+    let f = hemicube_face_frame(local, face);
+    let y = select(2.0 * f.y - f.z, f.y, face == 0u);
     var out: CasterOut;
     // z = w − near keeps 0 ≤ z ≤ w exactly for points in front of the near plane.
-    out.clip = vec4f(x, y, w - params.near, w);
+    out.clip = vec4f(f.x, y, f.z - params.near, f.z);
     out.local = local;
     out.material = in.material;
     out.uv0 = in.uv0;

@@ -134,14 +134,12 @@ fn parallelogram_form_factor(p: vec3f, n: vec3f, centre: vec3f, u: vec3f, v: vec
 // hemicube texel `xy` of `face`, whose viewport is `view`.
 fn hemicube_texel_direction(xy: vec2<i32>, view: vec4f, face: u32) -> vec3f {
     let uv = ((vec2f(xy) + 0.5 - view.xy) / view.zw) * vec2f(2.0, -2.0) + vec2f(-1.0, 1.0);
-    let up = 0.5 * (uv.y + 1.0);
-    switch face {
-        case 0u: { return vec3f(uv.x, uv.y, 1.0); }
-        case 1u: { return vec3f(1.0, uv.x, up); }
-        case 2u: { return vec3f(-1.0, uv.x, up); }
-        case 3u: { return vec3f(uv.x, 1.0, up); }
-        default: { return vec3f(uv.x, -1.0, up); }
-    }
+    // In the face's frame (across, up, forward), as `hemicube_face_frame`;
+    // a half face's v spans only the upper half.
+    let up = select(0.5 * (uv.y + 1.0), uv.y, face == 0u);
+    let forward = select(1.0, -1.0, face == 2u || face == 4u);
+    let sideways = select(vec3f(forward, uv.x, up), vec3f(uv.x, forward, up), face >= 3u);
+    return select(sideways, vec3f(uv.x, up, 1.0), face == 0u);
 }
 
 // Whether the receiver at `distance` from the hemicube's origin is seen
