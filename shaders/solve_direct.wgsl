@@ -283,18 +283,15 @@ fn ray_visibility(r: Receiver, march: bool, radius: f32, end_depth: f32, spin: f
         let points = select(4u, steps + 1u, march);
         var clear = true;
         for (var s = 0u; s < points && clear; s++) {
-            // The filter's points: a quarter, half and three quarters of the
-            // way to the blocker, then the tap at the receiver's depth.
-            var t = f32(s + 1u) * 0.25;
-            var z = select(mix(r.z, end_depth, t), r.z, s == 3u);
-            if (march) {
-                t = f32(s) / f32(steps);
-                // The last point sees, along the light's own direction, all
-                // that lies beyond the blockers the search found.
-                z = select(mix(r.z, end_depth, t), end_depth, s == steps);
-            }
-            let at = select(r.pixel + t * offset, r.pixel + offset, t == 1.0);
-            clear = ray_point_clear(at, r, z, march && s < steps, step_depth);
+            // The filter's points are a quarter, half and three quarters of
+            // the way to the blocker, then the tap at the receiver's depth.
+            // A march's last point sees, along the light's own direction,
+            // all that lies beyond the blockers the search found.
+            let t = select(f32(s + 1u) * 0.25, f32(s) / f32(steps), march);
+            let last = s + 1u == points;
+            let z = select(mix(r.z, end_depth, t), select(r.z, end_depth, march), last);
+            let at = select(r.pixel + t * offset, r.pixel + offset, last);
+            clear = ray_point_clear(at, r, z, march && !last, step_depth);
         }
         if (clear) {
             lit += 1.0;
