@@ -2,7 +2,8 @@
 // (design notes, algorithm step 3), tiled into one depth atlas; the draw's
 // instance index names the light slot. Triangles of alpha-MASK materials
 // are drawn by `fs_depth_masked`, which discards their cut-out fragments so
-// light passes through the holes.
+// light passes through the holes. The first layer marks in its depth's
+// lowest bit the surfaces whose back faces the light (`with_facing`).
 
 @group(0) @binding(0) var<uniform> params: DirectParams;
 @group(0) @binding(1) var<uniform> lights: LightBatch;
@@ -30,11 +31,27 @@ fn cut_out(in: CasterOut) -> bool {
     return alpha < m.emission.w;
 }
 
+// The fragment's depth with its lowest bit set where the light sees the
+// triangle's back (`seen_from_behind` in solve_direct.wgsl). The casters are
+// wound so that their front is the side their lightmap texels face; the
+// light-space frame keeps handedness, so that side faces the light exactly
+// where the rasterizer calls it front-facing. One unit in the last place
+// moves no surface past another that matters.
+fn with_facing(z: f32, front: bool) -> f32 {
+    return bitcast<f32>((bitcast<u32>(z) & ~1u) | select(1u, 0u, front));
+}
+
 @fragment
-fn fs_depth_masked(in: CasterOut) {
+fn fs_depth(in: CasterOut, @builtin(front_facing) front: bool) -> @builtin(frag_depth) f32 {
+    return with_facing(in.clip.z, front);
+}
+
+@fragment
+fn fs_depth_masked(in: CasterOut, @builtin(front_facing) front: bool) -> @builtin(frag_depth) f32 {
     if (cut_out(in)) {
         discard;
     }
+    return with_facing(in.clip.z, front);
 }
 
 // The second layer: the nearest surface behind the first (depth peeling).

@@ -29,6 +29,10 @@ const MAX_MARCH: f32 = 24.0;
 // stay about three shadow-map texels apart, up to 32.
 const MIN_SEARCH_TAPS: u32 = 8u;
 const MAX_SEARCH_TAPS: u32 = 32u;
+// Share of the depth bias by which a surface seen from behind must lie in
+// front of the receiver to cover it: rounding only, since it is not the
+// receiver's own surface.
+const COVER_TOLERANCE: f32 = 0.125;
 // Shadow rays (filter taps) per light where the search found a blocker.
 const MAX_RAYS: u32 = 16u;
 // Widest penumbra the percentage-closer filter takes, shadow-map texels
@@ -93,10 +97,41 @@ fn blocker_at(at: vec2f, r: Receiver) -> f32 {
 // Whether a point at depth `z` is lit past the surface the depth map holds
 // at texel `cell`, depth `stored` (as `lit_at_depth`).
 fn lit_by(cell: vec2<i32>, stored: f32, r: Receiver, z: f32) -> bool {
-    if (z <= stored + r.bias) {
+    let n = neighbour_depths(cell, r.tile);
+    if (z <= stored + r.bias && !covers_receiver(vec2f(cell), stored, n, r)) {
         return true;
     }
-    return on_receiver_plane(vec2f(cell), stored, neighbour_depths(cell, r.tile), r);
+    return on_receiver_plane(vec2f(cell), stored, n, r);
+}
+
+// Whether the first-layer depth `stored` is of a surface the light sees
+// from behind (marked by `with_facing` in solve_depth.wgsl).
+fn seen_from_behind(stored: f32) -> bool {
+    return (bitcast<u32>(stored) & 1u) != 0u;
+}
+
+// Whether the surface the depth map holds at texel `cell` (depth `stored`,
+// neighbours `n` as `neighbour_depths` gives them) turns its back to the
+// light in front of the receiver's surface point: a surface the receiver
+// nearly touches, seen from behind (the floor under a ball resting on it,
+// lit from below). It is never the receiver itself, so it needs no plane
+// and only a rounding tolerance; but the test point, lifted a shadow-map
+// texel off the surface, may have passed it. The stored surface is carried
+// to the receiver's own map position along its slope (from its smoother
+// side): a floor seen at a grazing angle changes depth across a texel by
+// far more than the millimetre under the ball.
+fn covers_receiver(cell: vec2f, stored: f32, n: vec4f, r: Receiver) -> bool {
+    let carried = r.surface_pixel - (cell + 0.5);
+    let slope = vec2f(smoother(n.x, stored, n.y), smoother(n.z, stored, n.w));
+    let there = stored + dot(slope, carried);
+    return seen_from_behind(stored) && there < r.surface_z - COVER_TOLERANCE * r.bias;
+}
+
+// The depth change per texel across `mid` from whichever side changes less
+// (`before` and `after` are the neighbours' depths): at a silhouette the
+// other side is another surface.
+fn smoother(before: f32, mid: f32, after: f32) -> f32 {
+    return select(after - mid, mid - before, abs(mid - before) < abs(after - mid));
 }
 
 // The shadow-map texel holding `at` (pixel units), clamped to the map.
@@ -111,8 +146,9 @@ fn map_cell(at: vec2f) -> vec2<i32> {
 fn on_receiver_plane(cell: vec2f, stored: f32, n: vec4f, r: Receiver) -> bool {
     let size = params.map_size;
     // Only a plane facing the light can be the receiver seen from it (from
-    // behind, a zero-thickness wall stands between them).
-    if (!r.front) {
+    // behind, a zero-thickness wall stands between them), and only a surface
+    // seen from the front.
+    if (!r.front || seen_from_behind(stored)) {
         return false;
     }
     // The receiver's plane, carried to this texel's centre. A curved surface
@@ -177,7 +213,10 @@ fn ray_point_clear(at: vec2f, r: Receiver, z: f32, interior: bool, step_depth: f
         max(min(abs(n.y - stored), abs(stored - n.x)), min(abs(n.w - stored), abs(stored - n.z))),
         interior,
     );
-    if (z <= stored + r.bias - across) {
+    // At the receiver's own depth, a surface it nearly touches from behind
+    // blocks however little it lies in front (`covers_receiver`).
+    let covered = z >= r.z && covers_receiver(vec2f(cell), stored, n, r);
+    if (z <= stored + r.bias - across && !covered) {
         return true;
     }
     if (on_receiver_plane(vec2f(cell), stored, n, r)) {

@@ -108,3 +108,38 @@ fn supersampling_does_not_reach_through_a_thin_wall() {
     assert!(baked.solution.supersampled > 0);
     assert!(worst < 0.02 * open, "a texel behind the wall has {worst}, the open floor {open}");
 }
+
+/// A ball rests on a black floor under light from below the horizon only.
+/// The floor covers the ball's underside from it: a texel there facing
+/// within 18° of straight down can see, past the ball itself, at most
+/// (1 − cos 18°)/2 = 2.4 % of its cosine-weighted hemisphere above the
+/// horizon (which is dark) and a band under the horizon beyond the floor's
+/// edge of well under 0.1 %. Lifting the receiver off its surface to test
+/// the shadow maps must not lift it through the floor it nearly touches.
+/// The ball's equator, 0.5 m up, sees that band 18° deep: about a fifth of
+/// its hemisphere's weight.
+#[test]
+fn underside_of_a_ball_resting_on_the_floor_sees_no_light_from_below() {
+    let gpu = common::gpu();
+    let mut builder = SceneBuilder::new();
+    builder.object("floor", &MeshData::plane(3.0, 3.0, 6), [0.0, 0.0, 0.0, 1.0], [0.0; 3], Placement::default());
+    builder.object(
+        "ball",
+        &MeshData::sphere(0.5, 48, 24),
+        [0.5, 0.5, 0.5, 1.0],
+        [0.0; 3],
+        Placement::at(Vec3::new(0.0, 0.5, 0.0)),
+    );
+    let below = EnvironmentMap::from_fn(512, 256, |d| if d[1] < 0.0 { [1.0; 3] } else { [0.0; 3] });
+    let lights = common::lights(&below, LightMode::Budget { count: 256 });
+    let baked = common::bake(&gpu, &builder, &lights, &common::options(128));
+    let ball = common::values_of(&baked, 1);
+    let underside: Vec<(Vec3, f32)> =
+        ball.iter().filter(|(t, _)| t.normal().y < -0.95).map(|(t, v)| (t.position(), *v)).collect();
+    let (at, worst) = underside.iter().cloned().fold((Vec3::ZERO, 0.0), |a, b| if b.1 > a.1 { b } else { a });
+    let side = ball.iter().filter(|(t, _)| t.normal().y.abs() < 0.1).map(|v| v.1).fold(0.0, f32::max);
+    eprintln!("{} underside texels: brightest {worst:.4} at {at}; brightest at the equator {side:.3}", underside.len());
+    assert!(!underside.is_empty());
+    assert!(side > 0.1, "the light from below must reach the ball's equator ({side})");
+    assert!(worst < 0.03, "an underside texel at {at} has {worst}");
+}

@@ -1,6 +1,6 @@
 //! Shadow casters for the depth maps of both solve passes: every triangle of
-//! the scene in world space, drawn from both sides (a one-sided plane still
-//! blocks light). Triangles of alpha-MASK materials come last and are drawn
+//! the scene in world space, wound counter-clockwise about its front side's
+//! normal and drawn from both sides (a one-sided plane still blocks light). Triangles of alpha-MASK materials come last and are drawn
 //! with a fragment shader that discards their cut-out texels, so light
 //! passes through the holes.
 
@@ -56,7 +56,13 @@ impl Casters {
                 });
             }
             let target = if materials.is_masked(material) { &mut masked } else { &mut opaque };
-            target.extend(primitive.indices.iter().map(|i| i + base));
+            // Wound so that the front is the side the lightmap faces
+            // (`ScenePrimitive::face_normal`): the depth maps mark surfaces
+            // the light sees from behind.
+            for corners in primitive.indices.chunks_exact(3) {
+                let [a, b, c] = [corners[0], corners[1], corners[2]].map(|i| i + base);
+                target.extend(if primitive.mirrored { [a, c, b] } else { [a, b, c] });
+            }
         }
         let (opaque_count, masked_count) = (opaque.len() as u32, masked.len() as u32);
         opaque.extend(masked);

@@ -221,7 +221,7 @@ pub fn run(
         immediate_size: 0,
     });
     let opaque_pipeline =
-        Casters::pipeline(gpu, "solve_depth", &depth_pipeline_layout, &depth_module, "vs_depth", None, &[]);
+        Casters::pipeline(gpu, "solve_depth", &depth_pipeline_layout, &depth_module, "vs_depth", Some("fs_depth"), &[]);
     let masked_pipeline = Casters::pipeline(
         gpu,
         "solve_depth masked",
