@@ -76,14 +76,7 @@ struct Receiver {
 // floor), and carrying the plane alone would see through such a corner
 // wherever the plane, extended, passes in front of the other surface.
 fn lit_at(at: vec2f, r: Receiver) -> bool {
-    return lit_at_depth(at, r, r.z);
-}
-
-// As `lit_at`, for a point of the ray from the receiver at depth `z` rather
-// than the receiver itself.
-fn lit_at_depth(at: vec2f, r: Receiver, z: f32) -> bool {
-    let cell = map_cell(at);
-    return lit_by(cell, textureLoad(depth_maps, cell + r.tile, 0), r, z);
+    return blocker_at(at, r) < 0.0;
 }
 
 // The depth of the surface the depth map holds at `at`, where it blocks
@@ -91,14 +84,14 @@ fn lit_at_depth(at: vec2f, r: Receiver, z: f32) -> bool {
 fn blocker_at(at: vec2f, r: Receiver) -> f32 {
     let cell = map_cell(at);
     let stored = textureLoad(depth_maps, cell + r.tile, 0);
-    return select(stored, -1.0, lit_by(cell, stored, r, r.z));
+    return select(stored, -1.0, lit_by(cell, stored, r));
 }
 
-// Whether a point at depth `z` is lit past the surface the depth map holds
-// at texel `cell`, depth `stored` (as `lit_at_depth`).
-fn lit_by(cell: vec2<i32>, stored: f32, r: Receiver, z: f32) -> bool {
+// Whether the receiver is lit past the surface the depth map holds at
+// texel `cell`, depth `stored` (as `lit_at`).
+fn lit_by(cell: vec2<i32>, stored: f32, r: Receiver) -> bool {
     let n = neighbour_depths(cell, r.tile);
-    if (z <= stored + r.bias && !covers_receiver(vec2f(cell), stored, n, r)) {
+    if (r.z <= stored + r.bias && !covers_receiver(vec2f(cell), stored, stored_slope(stored, n), r)) {
         return true;
     }
     return on_receiver_plane(vec2f(cell), stored, n, r);
@@ -120,16 +113,21 @@ fn seen_from_behind(stored: f32) -> bool {
 // to the receiver's own map position along its slope (from its smoother
 // side): a floor seen at a grazing angle changes depth across a texel by
 // far more than the millimetre under the ball.
-fn covers_receiver(cell: vec2f, stored: f32, n: vec4f, r: Receiver) -> bool {
-    let carried = r.surface_pixel - (cell + 0.5);
-    let slope = vec2f(smoother(n.x, stored, n.y), smoother(n.z, stored, n.w));
-    let there = stored + dot(slope, carried);
+fn covers_receiver(cell: vec2f, stored: f32, slope: vec2f, r: Receiver) -> bool {
+    let there = stored + dot(slope, r.surface_pixel - (cell + 0.5));
     return seen_from_behind(stored) && there < r.surface_z - COVER_TOLERANCE * r.bias;
 }
 
-// The depth change per texel across `mid` from whichever side changes less
-// (`before` and `after` are the neighbours' depths): at a silhouette the
-// other side is another surface.
+// The stored surface's depth change per texel along x and y, from the side
+// of the texel (depth `stored`, neighbours `n` as `neighbour_depths` gives
+// them) where it changes less: at a silhouette the other side is another
+// surface.
+fn stored_slope(stored: f32, n: vec4f) -> vec2f {
+    return vec2f(smoother(n.x, stored, n.y), smoother(n.z, stored, n.w));
+}
+
+// The depth change across `mid` from whichever side changes less (`before`
+// and `after` are the neighbours' depths).
 fn smoother(before: f32, mid: f32, after: f32) -> f32 {
     return select(after - mid, mid - before, abs(mid - before) < abs(after - mid));
 }
@@ -192,7 +190,7 @@ fn same_slope(mine: vec3f, theirs: vec2f) -> bool {
 // Whether a shadow ray's point `at` at depth `z` is clear of the scene.
 // A point at the end of a ray (`interior` false) is clear in front of the
 // first surface the depth map holds there, or on the receiver's own plane
-// (as `lit_at_depth`). A point inside a marched ray (`interior`) is clear
+// (as `lit_by`). A point inside a marched ray (`interior`) is clear
 // unless it lies inside the solid the depth maps bound there: behind the
 // first surface (and not the receiver's plane) and in front of the second,
 // within the ray's depth step plus the first surface's own depth change
@@ -203,19 +201,15 @@ fn ray_point_clear(at: vec2f, r: Receiver, z: f32, interior: bool, step_depth: f
     let cell = map_cell(at);
     let stored = textureLoad(depth_maps, cell + r.tile, 0);
     let n = neighbour_depths(cell, r.tile);
-    // The surface's depth change across a texel, from its smoother side: at
-    // a silhouette the other side is another surface. Inside a march, a
-    // point within the texel's depth range (a surface seen at a grazing
-    // angle spans many texels of depth) may be on either side: not clear,
-    // unless the surface is the receiver's own plane.
-    let across = select(
-        0.0,
-        max(min(abs(n.y - stored), abs(stored - n.x)), min(abs(n.w - stored), abs(stored - n.z))),
-        interior,
-    );
+    let slope = stored_slope(stored, n);
+    // The surface's depth change across a texel. Inside a march, a point
+    // within the texel's depth range (a surface seen at a grazing angle
+    // spans many texels of depth) may be on either side: not clear, unless
+    // the surface is the receiver's own plane.
+    let across = select(0.0, max(abs(slope.x), abs(slope.y)), interior);
     // At the receiver's own depth, a surface it nearly touches from behind
     // blocks however little it lies in front (`covers_receiver`).
-    let covered = z >= r.z && covers_receiver(vec2f(cell), stored, n, r);
+    let covered = z >= r.z && covers_receiver(vec2f(cell), stored, slope, r);
     if (z <= stored + r.bias - across && !covered) {
         return true;
     }

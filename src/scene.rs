@@ -45,13 +45,19 @@ pub struct ScenePrimitive {
 }
 
 impl ScenePrimitive {
+    /// The corners of triangle `t` wound counter-clockwise about its front
+    /// side's world-space normal: the source's order, reversed under a
+    /// mirroring transform.
+    pub fn front_corners(&self, t: usize) -> [u32; 3] {
+        let [a, b, c] = [0, 1, 2].map(|k| self.indices[3 * t + k]);
+        if self.mirrored { [a, c, b] } else { [a, b, c] }
+    }
+
     /// The world-space normal of triangle `t` from its winding (front side), or
     /// zero for a degenerate triangle.
     pub fn face_normal(&self, t: usize) -> Vec3 {
-        let [a, b, c] = [0, 1, 2].map(|k| Vec3::from(self.positions[self.indices[3 * t + k] as usize]));
-        let n = (b - a).cross(c - a);
-        let n = if self.mirrored { -n } else { n };
-        n.try_normalize().unwrap_or(Vec3::ZERO)
+        let [a, b, c] = self.front_corners(t).map(|i| Vec3::from(self.positions[i as usize]));
+        (b - a).cross(c - a).try_normalize().unwrap_or(Vec3::ZERO)
     }
 
     pub fn triangle_count(&self) -> usize {

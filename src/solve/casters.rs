@@ -1,8 +1,9 @@
 //! Shadow casters for the depth maps of both solve passes: every triangle of
 //! the scene in world space, wound counter-clockwise about its front side's
-//! normal and drawn from both sides (a one-sided plane still blocks light). Triangles of alpha-MASK materials come last and are drawn
-//! with a fragment shader that discards their cut-out texels, so light
-//! passes through the holes.
+//! normal and drawn from both sides (a one-sided plane still blocks light).
+//! Triangles of alpha-MASK materials come last and are drawn with a
+//! fragment shader that discards their cut-out texels, so light passes
+//! through the holes.
 
 use std::ops::Range;
 
@@ -56,12 +57,10 @@ impl Casters {
                 });
             }
             let target = if materials.is_masked(material) { &mut masked } else { &mut opaque };
-            // Wound so that the front is the side the lightmap faces
-            // (`ScenePrimitive::face_normal`): the depth maps mark surfaces
-            // the light sees from behind.
-            for corners in primitive.indices.chunks_exact(3) {
-                let [a, b, c] = [corners[0], corners[1], corners[2]].map(|i| i + base);
-                target.extend(if primitive.mirrored { [a, c, b] } else { [a, b, c] });
+            // Wound so that the front is the side the lightmap faces: the
+            // depth maps mark surfaces the light sees from behind.
+            for t in 0..primitive.triangle_count() {
+                target.extend(primitive.front_corners(t).map(|i| i + base));
             }
         }
         let (opaque_count, masked_count) = (opaque.len() as u32, masked.len() as u32);
