@@ -1,6 +1,6 @@
 //! The CPU reference against closed-form answers: furnaces, horizons,
-//! occluders, closed rooms, form factors, a sun, determinism and scale.
-//! Every check prints what it measured.
+//! occluders, closed rooms, form factors, a sun, textures and alpha cut-outs,
+//! determinism and scale. Every check prints what it measured.
 
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 use std::path::Path;
@@ -10,6 +10,8 @@ use bake::fixtures::{MeshData, Placement, SceneBuilder};
 use bake::reference::{Estimate, Reference, ReferenceOptions, ReferencePoint, surface_points};
 use bake::scene::Scene;
 use glam::{Quat, Vec3};
+use image::{Rgba, RgbaImage};
+use serde_json::{Value, json};
 
 fn scene(builder: &SceneBuilder) -> Scene {
     let glb = builder.to_glb();
@@ -318,6 +320,157 @@ fn sun_is_importance_sampled() {
             expected - intensity as f64 * sun as f64 * sun_integral / PI
         );
         check(&format!("sun at {rotation}°"), &e, [expected; 3], 4.0, 0.01);
+    }
+}
+
+/// Linear value of an 8-bit sRGB code: PNG colour textures are sRGB, and
+/// the importer decodes them with this transfer function.
+fn srgb_to_linear(code: u8) -> f64 {
+    let c = code as f64 / 255.0;
+    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+}
+
+fn solid(rgba: [u8; 4]) -> RgbaImage {
+    RgbaImage::from_pixel(4, 4, Rgba(rgba))
+}
+
+/// Left half `left`, right half `right` (u < 0.5 and u ≥ 0.5).
+fn halves(left: [u8; 4], right: [u8; 4]) -> RgbaImage {
+    RgbaImage::from_fn(64, 64, |x, _| Rgba(if x < 32 { left } else { right }))
+}
+
+/// The sRGB codes of a constant texture colour and their linear values.
+const CODES: [u8; 3] = [188, 128, 64];
+
+fn linear_codes() -> [f64; 3] {
+    CODES.map(srgb_to_linear)
+}
+
+#[test]
+fn textured_closed_room_converges_to_the_geometric_series() {
+    // A closed room of uniform albedo ρ and emission Le has L_lm = Le/(1 − ρ)
+    // everywhere. Here ρ = baseColorFactor × a constant texture, per channel.
+    let (le, factor) = (0.6f32, [0.9f32, 1.0, 1.0, 1.0]);
+    let [r, g, b] = CODES;
+    let colour = solid([r, g, b, 255]);
+    // The second case reads TEXCOORD_1, which the room lacks: like the bake,
+    // the reference reads it as (0, 0), here moved by the offset into the
+    // texture's coloured right half (its white left half would make ρ_g = 1).
+    let two_tone = halves([255; 4], [r, g, b, 255]);
+    let missing_set = json!({ "texCoord": 1, "offset": [0.75, 0.5] });
+    for (name, image, transform) in
+        [("TEXCOORD_0", &colour, None), ("missing TEXCOORD_1", &two_tone, Some(missing_set))]
+    {
+        let mut builder = SceneBuilder::new();
+        let material = builder.material("room", factor, [le; 3]);
+        let texture = builder.png_texture(image, 10497);
+        builder.base_color_texture(material, texture, transform);
+        let mesh = builder.mesh("room", &MeshData::room([2.0, 3.0, 4.0]), Some(material));
+        builder.node("room", mesh, Placement::default());
+        let scene = scene(&builder);
+        let reference = Reference::new(&scene, None, &options(4096));
+        let mut points: Vec<ReferencePoint> = surface_points(&scene, 3, 2).iter().map(|p| p.point).collect();
+        points.push(point([0.0; 3], [1.0, 0.0, 0.0]));
+        let albedo: Vec<f64> = linear_codes().iter().zip(factor).map(|(t, f)| t * f as f64).collect();
+        let expected = [0, 1, 2].map(|c| le as f64 / (1.0 - albedo[c]));
+        for e in reference.estimate(&points) {
+            check(&format!("textured room, {name}, albedo {albedo:.4?}"), &e, expected, 4.0, 0.02);
+        }
+    }
+}
+
+/// A black receiver square at y = 0 facing up under a 1 m emitter square at
+/// y = 1 facing down, emitting `le` × `texture` (through TEXCOORD_0, which
+/// runs u from 0 at x = −½ to 1 at x = +½).
+fn textured_emitter(le: f32, texture: &RgbaImage) -> Scene {
+    let mut builder = SceneBuilder::new();
+    builder.object("receiver", &MeshData::plane(1.0, 1.0, 1), [0.0, 0.0, 0.0, 1.0], [0.0; 3], Placement::default());
+    let material = builder.material("emitter", [0.0, 0.0, 0.0, 1.0], [le; 3]);
+    let t = builder.png_texture(texture, 33071);
+    builder.emissive_texture(material, t);
+    let mesh = builder.mesh("emitter", &MeshData::plane(1.0, 1.0, 1), Some(material));
+    builder.node("emitter", mesh, Placement::at(Vec3::new(0.0, 1.0, 0.0)).rotated(Quat::from_rotation_x(PI as f32)));
+    scene(&builder)
+}
+
+#[test]
+fn emissive_texture_scales_the_form_factor() {
+    let le = 5.0f32;
+    let f = view_factor(0.5, 0.5, 1.0);
+    let [r, g, b] = CODES;
+    let linear = linear_codes();
+    // A constant colour scales the emission per channel. Half black, half
+    // white: the point on the axis sees each half with half the view factor,
+    // by symmetry (bilinear filtering blends the seam antisymmetrically).
+    let cases = [
+        ("constant colour", solid([r, g, b, 255]), linear.map(|l| le as f64 * f * l)),
+        ("half black, half white", halves([0, 0, 0, 255], [255; 4]), [le as f64 * f / 2.0; 3]),
+    ];
+    for (name, texture, expected) in cases {
+        let scene = textured_emitter(le, &texture);
+        let e = Reference::new(&scene, None, &options(262144)).estimate(&[point([0.0; 3], [0.0, 1.0, 0.0])])[0];
+        check(&format!("emissive texture, {name}"), &e, expected, 4.0, 0.02);
+    }
+}
+
+/// A base colour texture: image, glTF wrap code for both axes, KHR_texture_transform.
+type TextureSetup<'a> = (&'a RgbaImage, u32, Option<Value>);
+
+/// A black 2×2 m canopy 1 m above the origin, facing down, alpha-MASKed at
+/// 0.5 with base colour alpha `alpha` × `texture` (TEXCOORD_0's u runs from 0
+/// at x = −1 to 1 at x = +1), under a sky of radiance 1 above the horizon.
+fn canopy_estimate(alpha: f32, texture: Option<TextureSetup>) -> Estimate {
+    let mut builder = SceneBuilder::new();
+    let material = builder.material("canopy", [0.0, 0.0, 0.0, alpha], [0.0; 3]);
+    if let Some((image, wrap, transform)) = texture {
+        let t = builder.png_texture(image, wrap);
+        builder.base_color_texture(material, t, transform);
+    }
+    builder.alpha_mask(material, 0.5);
+    let mesh = builder.mesh("canopy", &MeshData::plane(2.0, 2.0, 2), Some(material));
+    builder.node("canopy", mesh, Placement::at(Vec3::new(0.0, 1.0, 0.0)).rotated(Quat::from_rotation_x(PI as f32)));
+    let scene = scene(&builder);
+    let reference = Reference::new(&scene, Some(&horizon_map([1.0; 3])), &options(16384));
+    reference.estimate(&[point([0.0; 3], [0.0, 1.0, 0.0])])[0]
+}
+
+#[test]
+fn alpha_cut_outs_let_the_sky_through() {
+    // The point sees the sky (radiance 1) except where the canopy is solid:
+    // L = 1 − F_solid. Light samples (shadow rays) and cosine rays must both
+    // pass the holes.
+    let full = view_factor(1.0, 1.0, 1.0);
+    let (clamp, repeat, mirror) = (33071, 10497, 33648);
+    let opaque = solid([0, 0, 0, 255]);
+    let clear = solid([0, 0, 0, 0]);
+    // Solid where u < 0.5, cut out where u ≥ 0.5. A point on the axis sees
+    // the solid half with half the view factor, by symmetry.
+    let half = halves([0, 0, 0, 255], [0, 0, 0, 0]);
+    let cases: [(&str, f32, Option<TextureSetup>, f64); 7] = [
+        ("texture alpha 1", 1.0, Some((&opaque, clamp, None)), full),
+        ("texture alpha 0", 1.0, Some((&clear, clamp, None)), 0.0),
+        ("no texture, factor alpha 0.25", 0.25, None, 0.0),
+        ("left half solid", 1.0, Some((&half, clamp, None)), full / 2.0),
+        // u' = 0.5 + u/2 reads only the cut-out half.
+        (
+            "transform to the holes",
+            1.0,
+            Some((&half, clamp, Some(json!({ "offset": [0.5, 0.0], "scale": [0.5, 1.0] })))),
+            0.0,
+        ),
+        // u' = 2u: solid on x ∈ [−1, −½) and [0, ½), the mirror image of the holes.
+        ("repeated twice", 1.0, Some((&half, repeat, Some(json!({ "scale": [2.0, 1.0] })))), full / 2.0),
+        // u' = 2u mirrored at u' = 1: solid on the outer strips |x| > ½.
+        (
+            "mirrored twice",
+            1.0,
+            Some((&half, mirror, Some(json!({ "scale": [2.0, 1.0] })))),
+            full - view_factor(0.5, 1.0, 1.0),
+        ),
+    ];
+    for (name, alpha, texture, solid_factor) in cases {
+        let e = canopy_estimate(alpha, texture);
+        check(&format!("canopy, {name}"), &e, [1.0 - solid_factor; 3], 4.0, 0.02);
     }
 }
 

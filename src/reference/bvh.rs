@@ -4,7 +4,9 @@
 //! Bounding Volume Hierarchies", 2007) built sequentially, so the tree (and
 //! with it every traversal) is the same on every run and thread count.
 //! Traversal is front-to-back with a shrinking interval for closest hits and
-//! stops at the first hit for occlusion. Box tests use the conservative
+//! stops at the first hit for occlusion. A caller may reject hits (alpha
+//! cut-outs) with a test that runs before a hit shortens the ray; the plain
+//! queries pass a constant `true` that compiles away. Box tests use the conservative
 //! far-distance scaling of Ize ("Robust BVH Ray Traversal", JCGT 2013) and
 //! triangles use Möller–Trumbore in f64 with a tiny barycentric tolerance so
 //! that rays cannot slip through the shared edge of two triangles.
@@ -23,7 +25,13 @@ pub(crate) struct Triangle {
     pub normals: Option<[DVec3; 3]>,
     /// Index into the reference's material table.
     pub material: u32,
+    /// Index into the reference's per-triangle texture coordinates, or
+    /// [`NO_TEXCOORDS`] where the material samples no texture.
+    pub texcoords: u32,
 }
+
+/// `Triangle::texcoords` of a triangle that needs none.
+pub(crate) const NO_TEXCOORDS: u32 = u32::MAX;
 
 impl Triangle {
     /// The unit normal of the front side at barycentrics (u, v): the face
@@ -166,15 +174,70 @@ impl Bvh {
     /// The closest hit of the ray `origin + t·direction`, 0 < t < `t_max`,
     /// ignoring triangle `skip` (the one the ray leaves from), from either side.
     pub(crate) fn closest(&self, origin: DVec3, direction: DVec3, t_max: f64, skip: Option<u32>) -> Option<Hit> {
-        self.traverse(origin, direction, t_max, skip, false)
+        self.traverse(origin, direction, t_max, skip, false, &|_, _, _| true)
     }
 
     /// Whether anything lies on the ray within 0 < t < `t_max` (except `skip`).
     pub(crate) fn occluded(&self, origin: DVec3, direction: DVec3, t_max: f64, skip: Option<u32>) -> bool {
-        self.traverse(origin, direction, t_max, skip, true).is_some()
+        self.traverse(origin, direction, t_max, skip, true, &|_, _, _| true).is_some()
     }
 
-    fn traverse(&self, origin: DVec3, direction: DVec3, t_max: f64, skip: Option<u32>, any: bool) -> Option<Hit> {
+    /// [`Bvh::closest`] counting only the hits (triangle, u, v) that `solid`
+    /// accepts: the ray goes on through the others (alpha cut-outs). The
+    /// test runs inside the traversal, after a triangle is hit and before it
+    /// shortens the ray, so nothing behind a rejected hit is missed.
+    pub(crate) fn closest_solid(
+        &self,
+        origin: DVec3,
+        direction: DVec3,
+        t_max: f64,
+        skip: Option<u32>,
+        solid: &impl Fn(&Triangle, f64, f64) -> bool,
+    ) -> Option<Hit> {
+        self.traverse(origin, direction, t_max, skip, false, solid)
+    }
+
+    /// [`Bvh::occluded`] counting only the hits that `solid` accepts.
+    pub(crate) fn occluded_solid(
+        &self,
+        origin: DVec3,
+        direction: DVec3,
+        t_max: f64,
+        skip: Option<u32>,
+        solid: &impl Fn(&Triangle, f64, f64) -> bool,
+    ) -> bool {
+        self.traverse(origin, direction, t_max, skip, true, solid).is_some()
+    }
+
+    /// The hit of triangle `i` if it counts: not `skip`, within `t_max`, and `solid`.
+    #[inline(always)]
+    fn leaf_hit(
+        &self,
+        i: u32,
+        origin: DVec3,
+        direction: DVec3,
+        t_max: f64,
+        skip: Option<u32>,
+        solid: &impl Fn(&Triangle, f64, f64) -> bool,
+    ) -> Option<Hit> {
+        if Some(i) == skip {
+            return None;
+        }
+        let tri = &self.triangles[i as usize];
+        let (t, u, v) = Self::triangle_hit(tri, origin, direction, t_max)?;
+        solid(tri, u, v).then_some(Hit { t, triangle: i, u, v })
+    }
+
+    /// Front-to-back traversal: the closest solid hit, or with `any` the first found.
+    fn traverse(
+        &self,
+        origin: DVec3,
+        direction: DVec3,
+        t_max: f64,
+        skip: Option<u32>,
+        any: bool,
+        solid: &impl Fn(&Triangle, f64, f64) -> bool,
+    ) -> Option<Hit> {
         if self.triangles.is_empty() {
             return None;
         }
@@ -189,12 +252,9 @@ impl Bvh {
             let node = &self.nodes[current as usize];
             if node.count > 0 {
                 for i in node.start..node.start + node.count {
-                    if Some(i) == skip {
-                        continue;
-                    }
-                    if let Some((t, u, v)) = Self::triangle_hit(&self.triangles[i as usize], origin, direction, t_max) {
-                        t_max = t;
-                        best = Some(Hit { t, triangle: i, u, v });
+                    if let Some(hit) = self.leaf_hit(i, origin, direction, t_max, skip, solid) {
+                        t_max = hit.t;
+                        best = Some(hit);
                         if any {
                             return best;
                         }
@@ -213,7 +273,7 @@ impl Bvh {
                         } else {
                             // Deeper than any SAH tree over 2^32 triangles gets;
                             // kept correct anyway by visiting `far` first now.
-                            if let Some(h) = self.traverse_from(far, origin, direction, inv, t_max, skip, any) {
+                            if let Some(h) = self.traverse_from(far, origin, direction, inv, t_max, skip, any, solid) {
                                 t_max = h.t;
                                 best = Some(h);
                                 if any {
@@ -261,6 +321,7 @@ impl Bvh {
         t_max: f64,
         skip: Option<u32>,
         any: bool,
+        solid: &impl Fn(&Triangle, f64, f64) -> bool,
     ) -> Option<Hit> {
         let n = &self.nodes[node as usize];
         Self::box_entry(n, origin, inv, t_max)?;
@@ -268,12 +329,9 @@ impl Bvh {
         let mut best = None;
         if n.count > 0 {
             for i in n.start..n.start + n.count {
-                if Some(i) == skip {
-                    continue;
-                }
-                if let Some((t, u, v)) = Self::triangle_hit(&self.triangles[i as usize], origin, direction, t_max) {
-                    t_max = t;
-                    best = Some(Hit { t, triangle: i, u, v });
+                if let Some(hit) = self.leaf_hit(i, origin, direction, t_max, skip, solid) {
+                    t_max = hit.t;
+                    best = Some(hit);
                     if any {
                         return best;
                     }
@@ -282,7 +340,7 @@ impl Bvh {
             return best;
         }
         for child in [n.start, n.start + 1] {
-            if let Some(h) = self.traverse_from(child, origin, direction, inv, t_max, skip, any) {
+            if let Some(h) = self.traverse_from(child, origin, direction, inv, t_max, skip, any, solid) {
                 t_max = h.t;
                 best = Some(h);
                 if any {
@@ -395,7 +453,7 @@ mod tests {
 
     fn random_triangles(n: usize, rng: &mut Rng) -> Vec<Triangle> {
         (0..n)
-            .map(|_| {
+            .map(|i| {
                 let c = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 10.0;
                 let r = |rng: &mut Rng| DVec3::new(rng.next_f64() - 0.5, rng.next_f64() - 0.5, rng.next_f64() - 0.5);
                 let (a, b, d) = (c + r(rng), c + r(rng), c + r(rng));
@@ -405,7 +463,8 @@ mod tests {
                     e2: d - a,
                     face: (b - a).cross(d - a).normalize(),
                     normals: None,
-                    material: 0,
+                    material: i as u32 % 3,
+                    texcoords: NO_TEXCOORDS,
                 }
             })
             .collect()
@@ -427,5 +486,29 @@ mod tests {
             assert_eq!(hit, brute);
             assert_eq!(bvh.occluded(o, d, f64::INFINITY, None), brute.is_finite());
         }
+    }
+
+    #[test]
+    fn rejected_hits_let_the_ray_through_to_the_next_solid_one() {
+        let mut rng = Rng::new(&[43]);
+        let triangles = random_triangles(3000, &mut rng);
+        let bvh = Bvh::new(triangles.clone());
+        // Material 0 is all holes; the others are cut out where u < 0.3.
+        let solid = |t: &Triangle, u: f64, _: f64| t.material != 0 && u >= 0.3;
+        let mut rejected = 0;
+        for _ in 0..500 {
+            let o = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 12.0 - 1.0;
+            let d = DVec3::new(rng.next_f64() - 0.5, rng.next_f64() - 0.5, rng.next_f64() - 0.5).normalize();
+            let hits: Vec<(f64, bool)> = triangles
+                .iter()
+                .filter_map(|t| Bvh::triangle_hit(t, o, d, f64::INFINITY).map(|(h, u, v)| (h, solid(t, u, v))))
+                .collect();
+            rejected += hits.iter().filter(|h| !h.1).count();
+            let brute = hits.iter().filter(|h| h.1).map(|h| h.0).fold(f64::INFINITY, f64::min);
+            let hit = bvh.closest_solid(o, d, f64::INFINITY, None, &solid).map_or(f64::INFINITY, |h| h.t);
+            assert_eq!(hit, brute);
+            assert_eq!(bvh.occluded_solid(o, d, f64::INFINITY, None, &solid), brute.is_finite());
+        }
+        assert!(rejected > 100, "only {rejected} hits were rejected");
     }
 }

@@ -25,6 +25,14 @@
 //! is that of the front-side face normal (shading normals decide the side
 //! only, never the cosine), so energy is conserved exactly.
 //!
+//! Materials are the bake's: ρ(q) is baseColorFactor RGB × the base colour
+//! texture's RGB at q, clamped to [0, 1]; Le(q) is the emission × the emissive
+//! texture's RGB, clamped to ≥ 0. An alpha-MASK surface is absent (from both
+//! sides, for every ray) where baseColorFactor alpha × the base texture's
+//! alpha < the cut-off; BLEND is opaque, as the bake treats it. A texture
+//! whose image was not decoded is white with alpha 1, and a UV set the mesh
+//! lacks reads as (0, 0), as the bake's vertex buffers fill it.
+//!
 //! # Conventions
 //! World space is glTF's: right-handed, +Y up, metres. The environment is an
 //! equirectangular map, row 0 at the zenith: direction d of the map's frame
@@ -50,6 +58,15 @@
 //! sun is found by nearly every light sample. Russian roulette (with the hit
 //! surface's largest albedo channel as survival probability) starts after
 //! three surface interactions; `max_bounces` is a hard cap.
+//!
+//! Textures are sampled at every hit's barycentrics through the triangle's
+//! UV sets and KHR_texture_transform, with the sampler's wrap mode per axis
+//! and bilinear filtering at the image's full resolution (`texture.rs`): no
+//! mip levels, since the Monte Carlo integral itself averages the texture
+//! over what the rays reach. Alpha cut-outs are tested inside the BVH
+//! traversal, after a triangle is hit and before it shortens the ray, so
+//! closest-hit and shadow rays go on through holes without re-tracing; in
+//! scenes without MASK materials the traversal runs with no test at all.
 //!
 //! Emissive surfaces are only found when a cosine-sampled ray happens to hit
 //! them (there is no list of emissive triangles to sample). This is unbiased
@@ -77,15 +94,17 @@
 
 mod bvh;
 mod sampling;
+mod texture;
 mod trace;
 
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
 use crate::environment::EnvironmentMap;
-use crate::scene::Scene;
-use bvh::{Bvh, Triangle};
+use crate::scene::{AlphaMode, LinearImage, Scene, ScenePrimitive, TextureRef};
+use bvh::{Bvh, NO_TEXCOORDS, Triangle};
 use sampling::{EnvSampler, Rng};
+use texture::Texture;
 
 /// Samples per independent random stream (see the module's "Determinism").
 const CHUNK: u32 = 128;
@@ -155,38 +174,106 @@ pub struct SurfacePoint {
     pub point: ReferencePoint,
 }
 
-/// What a surface does with light, in f64 (albedo clamped to [0, 1],
-/// emission to non-negative finite values).
+/// What a surface does with light, in f64. The factors are glTF's, with
+/// non-finite channels read as 0; the textures multiply them and the
+/// products are clamped as the bake's texelize pass does (albedo to [0, 1],
+/// emission to ≥ 0).
 #[derive(Clone, Debug)]
 struct SurfaceMaterial {
-    albedo: DVec3,
+    /// baseColorFactor RGB.
+    base_color: DVec3,
+    /// baseColorFactor alpha, as given: the bake compares it (× the base
+    /// texture's alpha) with the cut-off unchanged.
+    alpha: f64,
     emission: DVec3,
+    /// Only textures whose image was decoded: a missing one is white, as in
+    /// the bake (`texture_ref` in gpu::materials).
+    base_texture: Option<Texture>,
+    emissive_texture: Option<Texture>,
+    /// alphaMode MASK's cut-off: the surface is absent where alpha < cut-off.
+    /// `None` for OPAQUE and BLEND (baked opaque) and for a negative or NaN
+    /// cut-off, which the bake's casters also treat as opaque (`is_masked`).
+    cutoff: Option<f64>,
     double_sided: bool,
 }
 
 impl SurfaceMaterial {
-    fn new(m: &crate::scene::Material) -> SurfaceMaterial {
-        let clean = |v: f32, hi: f64| {
-            if v.is_finite() { (v as f64).clamp(0.0, hi) } else { 0.0 }
+    /// `m` with its textures' images looked up in `image_slots` (scene image
+    /// index → index into the reference's images, `None` if not decoded).
+    fn new(m: &crate::scene::Material, image_slots: &[Option<usize>]) -> SurfaceMaterial {
+        let finite = |v: f32| if v.is_finite() { v as f64 } else { 0.0 };
+        let texture = |t: &Option<TextureRef>| {
+            let t = t.as_ref()?;
+            let image = image_slots.get(t.image).copied().flatten()?;
+            Some(Texture::new(t, image))
+        };
+        let cutoff = match m.alpha {
+            AlphaMode::Mask(c) if c >= 0.0 => Some(c as f64),
+            _ => None,
         };
         SurfaceMaterial {
-            albedo: DVec3::new(clean(m.base_color[0], 1.0), clean(m.base_color[1], 1.0), clean(m.base_color[2], 1.0)),
-            emission: DVec3::new(
-                clean(m.emission[0], f64::MAX),
-                clean(m.emission[1], f64::MAX),
-                clean(m.emission[2], f64::MAX),
-            ),
+            base_color: DVec3::new(finite(m.base_color[0]), finite(m.base_color[1]), finite(m.base_color[2])),
+            alpha: m.base_color[3] as f64,
+            emission: DVec3::from(m.emission.map(finite)),
+            base_texture: texture(&m.base_color_texture),
+            emissive_texture: texture(&m.emissive_texture),
+            cutoff,
             double_sided: m.double_sided,
         }
     }
+
+    /// Whether shading a hit needs the triangle's texture coordinates.
+    fn is_textured(&self) -> bool {
+        self.base_texture.is_some() || self.emissive_texture.is_some()
+    }
+}
+
+/// Albedo from a base colour factor × texture: non-finite channels 0, clamped to [0, 1].
+fn clamp_albedo(c: DVec3) -> DVec3 {
+    DVec3::select(c.is_finite_mask(), c, DVec3::ZERO).clamp(DVec3::ZERO, DVec3::ONE)
+}
+
+/// Emission from a factor × texture: non-finite channels 0, negative ones 0.
+fn clamp_emission(c: DVec3) -> DVec3 {
+    DVec3::select(c.is_finite_mask(), c, DVec3::ZERO).max(DVec3::ZERO)
+}
+
+/// What a surface does at one point: its albedo and emitted radiance.
+#[derive(Clone, Copy, Debug)]
+struct SurfaceSample {
+    albedo: DVec3,
+    emission: DVec3,
+}
+
+/// A triangle's TEXCOORD_0 and TEXCOORD_1 at its three vertices (source
+/// order, as `Triangle::v0`, `e1`, `e2`): `[set][vertex]`.
+type TriangleTexcoords = [[[f32; 2]; 3]; 2];
+
+/// The UV sets of triangle `t` of `p`. A set the primitive lacks (or whose
+/// length does not match its positions) is zero, as the bake's vertex
+/// buffers fill it (texelize and solve::casters).
+fn triangle_texcoords(p: &ScenePrimitive, t: usize) -> TriangleTexcoords {
+    let corners = [0, 1, 2].map(|k| p.indices[3 * t + k] as usize);
+    [&p.uv0, &p.uv1].map(|set| match set.as_ref().filter(|uv| uv.len() == p.positions.len()) {
+        Some(uv) => corners.map(|i| uv[i]),
+        None => [[0.0; 2]; 3],
+    })
 }
 
 /// A scene prepared for reference estimates: a BVH over all its triangles
-/// (f64, per-triangle material and normals) and the environment's sampling
-/// tables. Build once, then call [`Reference::estimate`] as often as needed.
+/// (f64, per-triangle material and normals), the textures and UV sets its
+/// materials sample, and the environment's sampling tables. Build once,
+/// then call [`Reference::estimate`] as often as needed.
 pub struct Reference {
     bvh: Bvh,
     materials: Vec<SurfaceMaterial>,
+    /// The decoded images the materials sample, each once.
+    images: Vec<LinearImage>,
+    /// UV sets of the triangles whose material is textured (`Triangle::texcoords`).
+    texcoords: Vec<TriangleTexcoords>,
+    /// Whether any material is an alpha cut-out: only then do rays test hits
+    /// for holes (the plain traversal stays as fast as without textures).
+    has_cutouts: bool,
     env: Option<EnvSampler>,
     /// Largest absolute vertex coordinate, metres (1 for an empty scene).
     scale: f64,
@@ -226,23 +313,66 @@ fn scene_triangles(scene: &Scene) -> Vec<(usize, usize, Triangle)> {
                     if v.is_finite() { v } else { DVec3::ZERO }
                 })
             });
-            out.push((pi, t, Triangle { v0: a, e1, e2, face, normals, material }));
+            out.push((pi, t, Triangle { v0: a, e1, e2, face, normals, material, texcoords: NO_TEXCOORDS }));
         }
     }
     out
 }
 
+/// The scene's decoded, well-formed images that some material samples,
+/// copied once, and for each scene image its index among them (`None`:
+/// sampled as white).
+fn usable_images(scene: &Scene) -> (Vec<LinearImage>, Vec<Option<usize>>) {
+    let mut sampled = vec![false; scene.images.len()];
+    for m in &scene.materials {
+        for t in [&m.base_color_texture, &m.emissive_texture].into_iter().flatten() {
+            if let Some(s) = sampled.get_mut(t.image) {
+                *s = true;
+            }
+        }
+    }
+    let mut images = Vec::new();
+    let slots = scene
+        .images
+        .iter()
+        .zip(sampled)
+        .map(|(image, sampled)| {
+            let image = image.as_ref().filter(|i| sampled && texture::is_usable(i))?;
+            images.push(image.clone());
+            Some(images.len() - 1)
+        })
+        .collect();
+    (images, slots)
+}
+
 impl Reference {
     /// Prepares `scene` (every triangle of every primitive, its material, its
-    /// normals) and, if given, `environment` under the options' rotation and
-    /// intensity. Without an environment escaping rays see black.
+    /// normals, the textures its material samples and their UV sets) and, if
+    /// given, `environment` under the options' rotation and intensity.
+    /// Without an environment escaping rays see black.
     ///
     /// # Panics
     /// If the environment's texel count is not width × height.
     pub fn new(scene: &Scene, environment: Option<&EnvironmentMap>, options: &ReferenceOptions) -> Reference {
-        let mut materials: Vec<SurfaceMaterial> = scene.materials.iter().map(SurfaceMaterial::new).collect();
-        materials.push(SurfaceMaterial::new(&crate::scene::Material::default()));
-        let triangles: Vec<Triangle> = scene_triangles(scene).into_iter().map(|(_, _, t)| t).collect();
+        let (images, image_slots) = usable_images(scene);
+        let default_material = crate::scene::Material::default();
+        let materials: Vec<SurfaceMaterial> = scene
+            .materials
+            .iter()
+            .chain(std::iter::once(&default_material))
+            .map(|m| SurfaceMaterial::new(m, &image_slots))
+            .collect();
+        let mut texcoords = Vec::new();
+        let triangles: Vec<Triangle> = scene_triangles(scene)
+            .into_iter()
+            .map(|(pi, t, mut tri)| {
+                if materials[tri.material as usize].is_textured() {
+                    tri.texcoords = texcoords.len() as u32;
+                    texcoords.push(triangle_texcoords(&scene.primitives[pi], t));
+                }
+                tri
+            })
+            .collect();
         let scale = triangles
             .iter()
             .flat_map(|t| [t.v0, t.v0 + t.e1, t.v0 + t.e2])
@@ -252,9 +382,13 @@ impl Reference {
         let env = environment
             .filter(|m| m.width > 0 && m.height > 0)
             .map(|m| EnvSampler::new(m, options.env_rotation_degrees as f64, options.env_intensity as f64));
+        let has_cutouts = materials.iter().any(|m| m.cutoff.is_some());
         Reference {
             bvh: Bvh::new(triangles),
             materials,
+            images,
+            texcoords,
+            has_cutouts,
             env,
             scale,
             surface_offset: 1e-9 * scale,
@@ -273,6 +407,47 @@ impl Reference {
     /// relative to.
     pub fn scale(&self) -> f64 {
         self.scale
+    }
+
+    /// The albedo and emission of `tri` at barycentrics (u, v).
+    fn surface_at(&self, tri: &Triangle, u: f64, v: f64) -> SurfaceSample {
+        let m = &self.materials[tri.material as usize];
+        if !m.is_textured() {
+            return SurfaceSample { albedo: clamp_albedo(m.base_color), emission: clamp_emission(m.emission) };
+        }
+        let uv = self.texcoords_at(tri, u, v);
+        let rgb = |t: &Option<Texture>| t.as_ref().map_or(DVec3::ONE, |t| t.sample(&self.images, uv).truncate());
+        SurfaceSample {
+            albedo: clamp_albedo(m.base_color * rgb(&m.base_texture)),
+            emission: clamp_emission(m.emission * rgb(&m.emissive_texture)),
+        }
+    }
+
+    /// Whether `tri` is cut out at barycentrics (u, v): its material is an
+    /// alpha MASK and base colour alpha × the base texture's alpha falls
+    /// below the cut-off (the bake's casters' test, so NaN alpha is solid).
+    fn is_cut_out(&self, tri: &Triangle, u: f64, v: f64) -> bool {
+        let m = &self.materials[tri.material as usize];
+        let Some(cutoff) = m.cutoff else {
+            return false;
+        };
+        let texture_alpha = match &m.base_texture {
+            Some(t) => t.sample(&self.images, self.texcoords_at(tri, u, v)).w,
+            None => 1.0,
+        };
+        m.alpha * texture_alpha < cutoff
+    }
+
+    /// TEXCOORD_0 and TEXCOORD_1 of `tri` at barycentrics (u, v); zero for a
+    /// triangle without stored coordinates.
+    fn texcoords_at(&self, tri: &Triangle, u: f64, v: f64) -> [DVec2; 2] {
+        let Some(sets) = self.texcoords.get(tri.texcoords as usize) else {
+            return [DVec2::ZERO; 2];
+        };
+        sets.map(|[a, b, c]| {
+            let [a, b, c] = [a, b, c].map(|p| DVec2::new(p[0] as f64, p[1] as f64));
+            a * (1.0 - u - v) + b * u + c * v
+        })
     }
 
     /// Estimates L_lm at every point (same order), in parallel over points
@@ -368,7 +543,9 @@ impl Stats {
 
 /// The scene's triangles for visibility tests outside the reference: the
 /// solve's supersample fix-up asks whether a segment along a surface
-/// crosses other geometry.
+/// crosses other geometry. Geometry only: alpha-MASK cut-outs block like
+/// solid surface (unlike in [`Reference`]), so the fix-up drops a sub-sample
+/// behind a hole as it does behind a wall, which costs only some smoothing.
 pub(crate) struct Occluders(Bvh);
 
 impl Occluders {
@@ -422,4 +599,46 @@ pub fn surface_points(scene: &Scene, count: usize, seed: u64) -> Vec<SurfacePoin
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn primitive(uv0: Option<Vec<[f32; 2]>>, uv1: Option<Vec<[f32; 2]>>) -> ScenePrimitive {
+        ScenePrimitive {
+            node: 0,
+            mesh: 0,
+            primitive: 0,
+            positions: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 1.0]],
+            normals: None,
+            uv0,
+            uv1,
+            indices: vec![0, 1, 2, 2, 1, 3],
+            repeats: Vec::new(),
+            mirrored: false,
+            material: None,
+        }
+    }
+
+    #[test]
+    fn texcoords_follow_the_source_corners_and_missing_sets_are_zero() {
+        let uv = vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]];
+        let p = primitive(Some(uv.clone()), None);
+        assert_eq!(triangle_texcoords(&p, 1), [[uv[2], uv[1], uv[3]], [[0.0; 2]; 3]]);
+        let p = primitive(None, Some(uv.clone()));
+        assert_eq!(triangle_texcoords(&p, 0), [[[0.0; 2]; 3], [uv[0], uv[1], uv[2]]]);
+        // A set that does not match the positions is left out too.
+        let p = primitive(Some(uv[..3].to_vec()), None);
+        assert_eq!(triangle_texcoords(&p, 0), [[[0.0; 2]; 3]; 2]);
+    }
+
+    #[test]
+    fn albedo_and_emission_are_clamped_after_the_texture_multiplies() {
+        // A factor above 1 times a dark texel is not clipped to the texel.
+        let albedo = clamp_albedo(DVec3::new(2.0, 1.5, 0.5) * DVec3::new(0.25, 1.0, 1.0));
+        assert_eq!(albedo, DVec3::new(0.5, 1.0, 0.5));
+        assert_eq!(clamp_albedo(DVec3::new(f64::NAN, -1.0, f64::INFINITY)), DVec3::ZERO);
+        assert_eq!(clamp_emission(DVec3::new(f64::NAN, -1.0, 7.0)), DVec3::new(0.0, 0.0, 7.0));
+    }
 }

@@ -8,13 +8,16 @@
 //! continues the path: if it escapes it sees the environment (MIS-weighted);
 //! if it reaches the front of a surface it sees that surface's emission
 //! (unweighted: emitters are only found this way) plus its albedo times its
-//! own incident light, estimated recursively from the new vertex.
+//! own incident light, estimated recursively from the new vertex. Albedo and
+//! emission are the material's factors times its textures at the hit; both
+//! kinds of ray pass through alpha cut-outs as if the surface were absent.
 
 use std::f64::consts::FRAC_1_PI;
 
 use glam::DVec3;
 
 use super::Reference;
+use super::bvh::{Hit, Triangle};
 use super::sampling::{Rng, cosine_hemisphere};
 
 /// Surface interactions after which Russian roulette starts.
@@ -26,6 +29,27 @@ fn balance(a: f64, b: f64) -> f64 {
 }
 
 impl Reference {
+    /// The closest surface along the ray (not `skip`), passing through alpha
+    /// cut-outs; the plain traversal where the scene has none.
+    fn closest(&self, origin: DVec3, direction: DVec3, skip: Option<u32>) -> Option<Hit> {
+        if self.has_cutouts {
+            let solid = |tri: &Triangle, u, v| !self.is_cut_out(tri, u, v);
+            self.bvh.closest_solid(origin, direction, f64::INFINITY, skip, &solid)
+        } else {
+            self.bvh.closest(origin, direction, f64::INFINITY, skip)
+        }
+    }
+
+    /// Whether a surface other than `skip` and its cut-outs blocks the ray.
+    fn occluded(&self, origin: DVec3, direction: DVec3, skip: Option<u32>) -> bool {
+        if self.has_cutouts {
+            let solid = |tri: &Triangle, u, v| !self.is_cut_out(tri, u, v);
+            self.bvh.occluded_solid(origin, direction, f64::INFINITY, skip, &solid)
+        } else {
+            self.bvh.occluded(origin, direction, f64::INFINITY, skip)
+        }
+    }
+
     /// One path's estimate of L_lm at `position` (already offset off the
     /// surface) for the unit receiving `normal`.
     pub(super) fn sample_path(&self, position: DVec3, normal: DVec3, rng: &mut Rng) -> DVec3 {
@@ -42,7 +66,7 @@ impl Reference {
                 let env = env.unwrap();
                 let s = env.sample([rng.next_f64(), rng.next_f64(), rng.next_f64(), rng.next_f64()]);
                 let cos = s.direction.dot(normal);
-                if cos > 0.0 && s.pdf > 0.0 && !self.bvh.occluded(origin, s.direction, f64::INFINITY, skip) {
+                if cos > 0.0 && s.pdf > 0.0 && !self.occluded(origin, s.direction, skip) {
                     let pdf_cos = cos * FRAC_1_PI;
                     // (cos/π)/pdf × weight
                     let weight = pdf_cos / s.pdf * balance(s.pdf, pdf_cos);
@@ -54,7 +78,7 @@ impl Reference {
             if cos <= 0.0 {
                 break;
             }
-            let Some(hit) = self.bvh.closest(origin, direction, f64::INFINITY, skip) else {
+            let Some(hit) = self.closest(origin, direction, skip) else {
                 if let Some(env) = env {
                     let weight = if nee { balance(cos * FRAC_1_PI, env.pdf(direction)) } else { 1.0 };
                     result += beta * env.radiance(direction) * weight;
@@ -71,11 +95,12 @@ impl Reference {
                 }
                 n = -n;
             }
-            result += beta * material.emission;
+            let surface = self.surface_at(tri, hit.u, hit.v);
+            result += beta * surface.emission;
             if bounce == self.max_bounces {
                 break;
             }
-            let albedo = material.albedo;
+            let albedo = surface.albedo;
             let peak = albedo.max_element();
             if peak <= 0.0 {
                 break;
