@@ -162,9 +162,37 @@ fn on_receiver_plane(cell: vec2f, stored: f32, n: vec4f, r: Receiver) -> bool {
     // surface meeting it (a floor under a wall): their depths agree along
     // the line where they meet. The stored surface's slope on both sides of
     // this texel must be the receiver's: at such a junction one side is not.
+    // A side whose neighbour lies behind the plane carried on (a convex
+    // edge, or the plane's own edge against what lies beyond), or holds a
+    // surface that does not continue into this texel (the edge of a blocker
+    // well in front: the floor seen past a ball's rim) is no junction: a
+    // surface meeting the receiver there lies in front of the plane and runs
+    // on into the texel where they meet.
     let mine = vec3f(r.slope * size, -1.0);
-    return same_slope(mine, vec2f(n.y - stored, n.w - stored) * size)
-        && same_slope(mine, vec2f(stored - n.x, stored - n.z) * size);
+    let c = vec2<i32>(cell);
+    let after = same_slope(mine, vec2f(n.y - stored, n.w - stored) * size)
+        || any(n.yw > stored + r.slope + tolerance)
+        || apart(stored, n.y, far_depth(c + vec2<i32>(2, 0), r.tile), tolerance)
+        || apart(stored, n.w, far_depth(c + vec2<i32>(0, 2), r.tile), tolerance);
+    let before = same_slope(mine, vec2f(stored - n.x, stored - n.z) * size)
+        || any(n.xz > stored - r.slope + tolerance)
+        || apart(stored, n.x, far_depth(c - vec2<i32>(2, 0), r.tile), tolerance)
+        || apart(stored, n.z, far_depth(c - vec2<i32>(0, 2), r.tile), tolerance);
+    return after && before;
+}
+
+// The first-layer depth two texels away (clamped to the map).
+fn far_depth(at: vec2<i32>, tile: vec2<i32>) -> f32 {
+    let hi = vec2<i32>(i32(params.map_size) - 1);
+    return textureLoad(depth_maps, clamp(at, vec2<i32>(0), hi) + tile, 0);
+}
+
+// Whether the surface of the neighbouring texel (depth `near`, and `far`
+// one texel further out) does not continue into this texel (depth
+// `stored`): a silhouette, in front or behind.
+fn apart(stored: f32, near: f32, far: f32, tolerance: f32) -> bool {
+    let continued = 2.0 * near - far;
+    return abs(stored - continued) > 2.0 * tolerance + 0.5 * abs(near - far);
 }
 
 // First-layer depths of the texels left, right, above and below `cell`

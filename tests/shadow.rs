@@ -115,3 +115,38 @@ fn a_hard_shadow_edge_is_box_filtered_over_each_texels_footprint() {
     assert!(errors[1] < 0.07, "supersampled edge texels are {} from their lit share", errors[1]);
     assert!(errors[1] < 0.5 * errors[0], "supersampling changed the edge error from {} to {}", errors[0], errors[1]);
 }
+
+#[test]
+fn floor_around_a_ball_resting_on_it_sees_the_sky_the_ball_leaves() {
+    // A black ball of radius r resting on a black floor under a constant sky
+    // of L = 1 (direct light only). The ball lies wholly above the floor
+    // point's horizon, so it hides its view factor (r/D)² cos θ, D the
+    // distance to its centre and θ that direction's angle from the normal:
+    // L_lm = 1 − r³/D³. Within a few centimetres of the contact the gap under
+    // the ball is thinner than a shadow-map texel is wide; the ring from
+    // 15 to 40 cm, where the gap is 1.6 to 12 cm, must keep its sky.
+    let gpu = common::gpu();
+    let r = 0.7f32;
+    let mut builder = SceneBuilder::new();
+    builder.object("floor", &MeshData::plane(6.0, 6.0, 6), [0.0, 0.0, 0.0, 1.0], [0.0; 3], Placement::default());
+    builder.object("ball", &MeshData::sphere(r, 64, 32), [0.0, 0.0, 0.0, 1.0], [0.0; 3], Placement::at(Vec3::Y * r));
+    let lights = common::lights(&EnvironmentMap::constant([1.0; 3]), LightMode::Budget { count: 256 });
+    let baked = common::bake(&gpu, &builder, &lights, &common::options(256));
+    let expected = |d: f32| 1.0 - (r / (d * d + r * r).sqrt()).powi(3);
+    let ring = |from: f32, to: f32| {
+        let (mut got, mut want) = (0.0, 0.0);
+        for (t, v) in common::values_of(&baked, 0) {
+            let d = t.position().xz().length();
+            if d >= from && d < to {
+                got += v;
+                want += expected(d);
+            }
+        }
+        got / want
+    };
+    let (inner, outer, open) = (ring(0.15, 0.25), ring(0.25, 0.4), ring(1.5, 2.5));
+    eprintln!("bake / analytic: 15–25 cm {inner:.3}, 25–40 cm {outer:.3}, 1.5–2.5 m {open:.3}");
+    assert!((open - 1.0).abs() < 0.02, "the open floor: {open}");
+    assert!(inner > 0.86, "15–25 cm from the contact: {inner} of the sky the ball leaves");
+    assert!(outer > 0.95, "25–40 cm from the contact: {outer} of the sky the ball leaves");
+}

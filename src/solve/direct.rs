@@ -28,7 +28,10 @@ const DEPTH_BUDGET_BYTES: u64 = 128 << 20;
 
 /// Receivers test a point this far off their surface, in shadow-map texels
 /// (world size 2R/S): curved surfaces are not quite their tangent plane.
-const NORMAL_OFFSET_TEXELS: f32 = 1.0;
+/// Half a texel: the lift also raises the point towards whatever overhangs
+/// it, and a whole texel darkened floors under a ball by a third within
+/// 15 cm of the contact.
+const NORMAL_OFFSET_TEXELS: f32 = 0.5;
 /// Depth tolerance, shadow-map texels. The receiver's own plane is carried to
 /// each stored texel centre exactly (receiver-plane depth bias), so this only
 /// absorbs rounding; anything larger lets light through geometry that meets
