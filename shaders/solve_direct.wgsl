@@ -142,7 +142,6 @@ fn map_cell(at: vec2f) -> vec2<i32> {
 // its neighbours' `n` as `neighbour_depths` gives them) is the receiver's
 // own plane.
 fn on_receiver_plane(cell: vec2f, stored: f32, n: vec4f, r: Receiver) -> bool {
-    let size = params.map_size;
     // Only a plane facing the light can be the receiver seen from it (from
     // behind, a zero-thickness wall stands between them), and only a surface
     // seen from the front.
@@ -168,17 +167,23 @@ fn on_receiver_plane(cell: vec2f, stored: f32, n: vec4f, r: Receiver) -> bool {
     // well in front: the floor seen past a ball's rim) is no junction: a
     // surface meeting the receiver there lies in front of the plane and runs
     // on into the texel where they meet.
-    let mine = vec3f(r.slope * size, -1.0);
     let c = vec2<i32>(cell);
-    let after = same_slope(mine, vec2f(n.y - stored, n.w - stored) * size)
-        || any(n.yw > stored + r.slope + tolerance)
-        || apart(stored, n.y, far_depth(c + vec2<i32>(2, 0), r.tile), tolerance)
-        || apart(stored, n.w, far_depth(c + vec2<i32>(0, 2), r.tile), tolerance);
-    let before = same_slope(mine, vec2f(stored - n.x, stored - n.z) * size)
-        || any(n.xz > stored - r.slope + tolerance)
-        || apart(stored, n.x, far_depth(c - vec2<i32>(2, 0), r.tile), tolerance)
-        || apart(stored, n.z, far_depth(c - vec2<i32>(0, 2), r.tile), tolerance);
-    return after && before;
+    return plane_side(c, 1, stored, n.yw, r, tolerance) && plane_side(c, -1, stored, n.xz, r, tolerance);
+}
+
+// Whether the side `towards` (+1: right and down, −1: left and up) of texel
+// `cell` (depth `stored`, its neighbours there `near`, x then y) is no
+// junction, as `on_receiver_plane` needs: the stored surface keeps the
+// receiver's slope towards the side, or a neighbour lies behind the plane
+// carried on, or holds a surface that does not continue into the texel.
+fn plane_side(cell: vec2<i32>, towards: i32, stored: f32, near: vec2f, r: Receiver, tolerance: f32) -> bool {
+    let size = params.map_size;
+    let step = f32(towards);
+    let far = vec2<i32>(2 * towards, 0);
+    return same_slope(vec3f(r.slope * size, -1.0), (near - stored) * step * size)
+        || any(near > stored + step * r.slope + tolerance)
+        || apart(stored, near.x, far_depth(cell + far, r.tile), tolerance)
+        || apart(stored, near.y, far_depth(cell + far.yx, r.tile), tolerance);
 }
 
 // The first-layer depth two texels away (clamped to the map).
