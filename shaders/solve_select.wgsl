@@ -83,7 +83,10 @@ fn main(@builtin(local_invocation_index) lid: u32) {
                 // Lift the hemicube just off the surface (above a curved patch's
                 // rise) so it does not see its own patch; receivers between the
                 // surface and the hemicube count as seen.
-                shooter.lift = chosen_patch.lift + 0.02 * params.receiver_offset;
+                // The patch's rise is above its area centroid's plane; the
+                // origin (weighted by unshot power) may lie below that.
+                let below = dot(chosen_patch.position - shooter.position, chosen_patch.normal);
+                shooter.lift = max(chosen_patch.lift + below, 0.0) + 0.02 * params.receiver_offset;
                 shooter.half_u = chosen_patch.half_u;
                 shooter.half_v = chosen_patch.half_v;
                 shooter.rect_area = 4.0 * length(cross(chosen_patch.half_u, chosen_patch.half_v));

@@ -127,6 +127,83 @@ fn perpendicular_squares_sharing_an_edge_match_the_closed_form() {
     assert!((f / 0.20004 - 1.0).abs() < 0.03, "F = {f}");
 }
 
+/// A black floor and a black sphere, one of them glowing (radiance 1).
+fn ball_and_floor(ball_height: f32, radius: f32, glowing_ball: bool) -> SceneBuilder {
+    let (ball, floor) = if glowing_ball { ([1.0; 3], [0.0; 3]) } else { ([0.0; 3], [1.0; 3]) };
+    let mut builder = SceneBuilder::new();
+    let black = [0.0, 0.0, 0.0, 1.0];
+    builder.object("floor", &MeshData::plane(6.0, 6.0, 6), black, floor, Placement::default());
+    let at = Placement::at(Vec3::new(0.0, ball_height, 0.0));
+    builder.object("ball", &MeshData::sphere(radius, 64, 32), black, ball, at);
+    builder
+}
+
+#[test]
+fn glowing_ball_lights_the_floor_as_the_inverse_square_law_says() {
+    // A sphere of radius R and radiance 1 entirely above a point of the
+    // floor, its centre at height H and distance D, gives it
+    // L_lm = E/π = (R/D)² · H/D. Its patches are curved: each must shoot
+    // from above its own surface (a hemicube a hair too low saw the sphere
+    // from inside), and the floor must take the form factor at its surface
+    // (half a texel up, the ball's low patches looked flatter): the floor
+    // came out 20 % dark.
+    let (radius, height) = (0.5f32, 1.0f32);
+    let baked = bake_emitters(&ball_and_floor(height, radius, true), 128, |_| {});
+    let rings = [(0.0, 0.6), (0.6, 1.2), (1.2, 2.0), (2.0, 2.9)];
+    for (inner, outer) in rings {
+        let (mut bake, mut expected) = (0.0f64, 0.0f64);
+        for (t, v) in baked.texels.texels.iter().zip(&baked.solution.lightmap) {
+            let d = (t.position[0].powi(2) + t.position[2].powi(2)).sqrt();
+            if t.primitive == 0 && t.area > 0.0 && d >= inner && d < outer {
+                let distance = (d as f64).hypot(height as f64);
+                bake += v[0] as f64 * t.area as f64;
+                expected += (radius as f64 / distance).powi(2) * height as f64 / distance * t.area as f64;
+            }
+        }
+        let ratio = bake / expected;
+        eprintln!("floor {inner}–{outer} m from under the ball: bake / inverse-square law {ratio:.4}");
+        assert!((ratio - 1.0).abs() < 0.04, "ring {inner}–{outer} m: {ratio}");
+    }
+}
+
+#[test]
+fn ball_resting_on_a_glowing_floor_sees_it_with_its_underside() {
+    // Each texel of the lower half against the independent CPU path tracer
+    // at its position. The underside meets the floor at a grazing angle, near
+    // the floor's patches: the exact near-field form factor, taken from half
+    // a texel off the surface, left the lowest band at 0.77 of the reference.
+    let radius = 0.7f32;
+    let baked = bake_emitters(&ball_and_floor(radius, radius, false), 128, |_| {});
+    let lower: Vec<usize> = (0..baked.texels.texels.len())
+        .filter(|&i| {
+            let t = &baked.texels.texels[i];
+            t.primitive == 1 && t.area > 0.0 && t.position[1] < radius
+        })
+        .step_by(2)
+        .collect();
+    let points: Vec<_> = lower
+        .iter()
+        .map(|&i| {
+            let t = &baked.texels.texels[i];
+            bake::reference::ReferencePoint { position: t.position, normal: t.normal }
+        })
+        .collect();
+    let options = bake::reference::ReferenceOptions { samples: 1024, ..Default::default() };
+    let estimates = bake::reference::Reference::new(&baked.scene, None, &options).estimate(&points);
+    // Bands by height: the contact's band first.
+    let mut bands = [(0.0f64, 0.0f64); 3];
+    for (&i, estimate) in lower.iter().zip(&estimates) {
+        let band = ((baked.texels.texels[i].position[1] / radius * 3.0) as usize).min(2);
+        bands[band].0 += baked.solution.lightmap[i][0] as f64;
+        bands[band].1 += estimate.lightmap[0];
+    }
+    for (k, (bake, reference)) in bands.iter().enumerate() {
+        let ratio = bake / reference;
+        eprintln!("underside band {k} (from the contact up): bake / reference {ratio:.4}");
+        assert!((ratio - 1.0).abs() < 0.05, "band {k}: {ratio}");
+    }
+}
+
 /// A white floor with a red wall standing on one edge, under a uniform sky.
 fn floor_and_red_wall(floor_albedo: f32) -> SceneBuilder {
     let mut builder = SceneBuilder::new();

@@ -114,8 +114,21 @@ fn patch(texels: &TexelSet, members: &[u32], first: u32, texel_size: f32) -> Pat
     let first_texel = &texels.texels[members[0] as usize];
     let centroid = if area > 0.0 { (centroid / area).as_vec3() } else { first_texel.position() };
     let normal = normal.try_normalize().unwrap_or(Vec3::Y);
-    let lift =
-        members.iter().map(|&i| (texels.texels[i as usize].position() - centroid).dot(normal)).fold(0.0f32, f32::max);
+    // The hemicube must start above the patch's own surface, or it sees the
+    // surface from behind and its view is blocked. Texel centres give the
+    // rise above the centroid's plane; between them a facet tilted from the
+    // normal by θ rises up to half a texel's diagonal × sin θ more.
+    let mut lift = 0.0f32;
+    let mut tilt = 0.0f32;
+    for &i in members {
+        let t = &texels.texels[i as usize];
+        lift = lift.max((t.position() - centroid).dot(normal));
+        // sin θ (1 for a facet turned 90° or more away).
+        let face = Vec3::from(t.face_normal);
+        let sin = if face.dot(normal) > 0.0 { face.cross(normal).length() } else { 1.0 };
+        tilt = tilt.max(sin);
+    }
+    let lift = lift + std::f32::consts::FRAC_1_SQRT_2 * texel_size * tilt;
 
     // Affine fit P(x, y) ≈ c + U (x − x̄) + V (y − ȳ), from the texels that
     // lie wholly on the surface (border texels take an inset position, not
@@ -124,10 +137,15 @@ fn patch(texels: &TexelSet, members: &[u32], first: u32, texel_size: f32) -> Pat
     let whole: Vec<u32> =
         members.iter().copied().filter(|&i| texels.texels[i as usize].area >= 0.9 * largest).collect();
     let first_xy = (first_texel.x(texels.width) as f64, first_texel.y(texels.width) as f64);
-    let (c, mean_xy, u, v) = affine_fit(texels, if whole.len() >= 3 { &whole } else { members })
-        .or_else(|| affine_fit(texels, members))
+    // A patch along a chart's border may hold a single row of whole texels:
+    // the row gives one side, the surface's normal the other. A fit to the
+    // border texels' inset positions instead skewed the parallelogram off
+    // the surface, and receivers beside the border saw half their light.
+    let fitted = if whole.len() >= 3 { &whole } else { members };
+    let (c, mean_xy, u, v) = affine_fit(texels, fitted)
+        .or_else(|| line_fit(texels, fitted, members, normal.as_dvec3()))
         .unwrap_or_else(|| {
-            // A single texel, row or column: one texel's sides in the tangent plane.
+            // A single texel: its sides in the tangent plane.
             let t = normal.as_dvec3().any_orthonormal_vector() * texel_size as f64;
             (first_texel.position().as_dvec3(), first_xy, t, normal.as_dvec3().cross(t))
         });
@@ -206,6 +224,50 @@ fn affine_fit(texels: &TexelSet, members: &[u32]) -> Option<(DVec3, (f64, f64), 
     (u.cross(v).length() > 0.0).then_some((mp, (mx, my), u, v))
 }
 
+/// P(x, y) ≈ c + U (x − x̄) + V (y − ȳ) from `line`, texels along one atlas
+/// row or column: the least-squares side along it, and the other side as long,
+/// at right angles in the tangent plane of `normal` (texels are square on the
+/// surface), turned towards the other `members` with area. `None` unless
+/// `line` is a row or column of at least two texels.
+fn line_fit(
+    texels: &TexelSet,
+    line: &[u32],
+    members: &[u32],
+    normal: DVec3,
+) -> Option<(DVec3, (f64, f64), DVec3, DVec3)> {
+    let width = texels.width;
+    let xy = |i: u32| {
+        let t = &texels.texels[i as usize];
+        (t.x(width) as f64, t.y(width) as f64)
+    };
+    let count = line.len() as f64;
+    let mean = line.iter().fold((0.0, 0.0), |(x, y), &i| (x + xy(i).0 / count, y + xy(i).1 / count));
+    let centre = line.iter().map(|&i| texels.texels[i as usize].position().as_dvec3()).sum::<DVec3>() / count;
+    let row = line.iter().all(|&i| xy(i).1 == mean.1);
+    let column = line.iter().all(|&i| xy(i).0 == mean.0);
+    if row == column {
+        return None;
+    }
+    // Along the line: position against the atlas coordinate that changes.
+    let along = |i: u32| if row { xy(i).0 - mean.0 } else { xy(i).1 - mean.1 };
+    let across = |i: u32| if row { xy(i).1 - mean.1 } else { xy(i).0 - mean.0 };
+    let spread: f64 = line.iter().map(|&i| along(i).powi(2)).sum();
+    let side =
+        line.iter().map(|&i| (texels.texels[i as usize].position().as_dvec3() - centre) * along(i)).sum::<DVec3>()
+            / spread;
+    let mut other = normal.cross(side);
+    let turn: f64 = members
+        .iter()
+        .filter(|&&i| texels.texels[i as usize].area > 0.0)
+        .map(|&i| (texels.texels[i as usize].position().as_dvec3() - centre).dot(other) * across(i))
+        .sum();
+    if turn < 0.0 {
+        other = -other;
+    }
+    let (u, v) = if row { (side, other) } else { (other, side) };
+    (u.cross(v).length() > 0.0).then_some((centre, mean, u, v))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -270,5 +332,31 @@ mod tests {
             assert!((rect_area - p.area).abs() < 1e-5, "rect {rect_area} for area {}", p.area);
             assert!(Vec3::from(p.half_u).dot(Vec3::from(p.normal)).abs() < 1e-6, "in the patch's plane");
         }
+    }
+
+    #[test]
+    fn a_border_row_of_whole_texels_maps_to_its_own_cells() {
+        // A patch at a chart's border: one row of whole texels (x 0..3 at
+        // z = 0, 0.1 m texels) and the row beyond it, with `beyond_area` and
+        // positions inset to z = `beyond_z`. The parallelogram must be the
+        // cells of the texels with area, on the surface.
+        let patch_of = |beyond_area: f32, beyond_z: f32| {
+            let mut texels = grid();
+            for x in 0..3usize {
+                texels.texels[8 + x].area = beyond_area;
+                texels.texels[8 + x].position[2] = beyond_z;
+            }
+            patch(&texels, &[0, 1, 2, 8, 9, 10], 0, 0.1)
+        };
+        let close = |a: [f32; 3], b: Vec3| (Vec3::from(a) - b).length() < 1e-5;
+        // Texels beyond the surface have no area and sit on its edge: the row alone.
+        let p = patch_of(0.0, 0.0);
+        assert!(close(p.rect_centre, Vec3::new(0.1, 0.0, 0.0)), "centre {:?}", p.rect_centre);
+        assert!(close(p.half_u, Vec3::new(0.15, 0.0, 0.0)), "half_u {:?}", p.half_u);
+        assert!(close(p.half_v.map(f32::abs), Vec3::new(0.0, 0.0, 0.05)), "half_v {:?}", p.half_v);
+        // Partly covered texels beyond: both rows, the second on their side.
+        let p = patch_of(0.004, 0.03);
+        assert!(close(p.rect_centre, Vec3::new(0.1, 0.0, 0.05)), "centre {:?}", p.rect_centre);
+        assert!(close(p.half_v, Vec3::new(0.0, 0.0, 0.1)), "half_v {:?}", p.half_v);
     }
 }
