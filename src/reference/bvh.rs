@@ -5,8 +5,7 @@
 //! with it every traversal) is the same on every run and thread count.
 //! Traversal is front-to-back with a shrinking interval for closest hits and
 //! stops at the first hit for occlusion. A caller may reject hits (alpha
-//! cut-outs) with a test that runs before a hit shortens the ray; the plain
-//! queries pass a constant `true` that compiles away. Box tests use the conservative
+//! cut-outs) with a test that runs before a hit shortens the ray. Box tests use the conservative
 //! far-distance scaling of Ize ("Robust BVH Ray Traversal", JCGT 2013) and
 //! triangles use Möller–Trumbore in f64 with a tiny barycentric tolerance so
 //! that rays cannot slip through the shared edge of two triangles.
@@ -32,6 +31,11 @@ pub(crate) struct Triangle {
 
 /// `Triangle::texcoords` of a triangle that needs none.
 pub(crate) const NO_TEXCOORDS: u32 = u32::MAX;
+
+/// The hit filter of [`Bvh::closest`] and [`Bvh::occluded`] that keeps every hit.
+pub(crate) fn every_hit(_: &Triangle, _: f64, _: f64) -> bool {
+    true
+}
 
 impl Triangle {
     /// The unit normal of the front side at barycentrics (u, v): the face
@@ -172,21 +176,12 @@ impl Bvh {
     }
 
     /// The closest hit of the ray `origin + t·direction`, 0 < t < `t_max`,
-    /// ignoring triangle `skip` (the one the ray leaves from), from either side.
-    pub(crate) fn closest(&self, origin: DVec3, direction: DVec3, t_max: f64, skip: Option<u32>) -> Option<Hit> {
-        self.traverse(origin, direction, t_max, skip, false, &|_, _, _| true)
-    }
-
-    /// Whether anything lies on the ray within 0 < t < `t_max` (except `skip`).
-    pub(crate) fn occluded(&self, origin: DVec3, direction: DVec3, t_max: f64, skip: Option<u32>) -> bool {
-        self.traverse(origin, direction, t_max, skip, true, &|_, _, _| true).is_some()
-    }
-
-    /// [`Bvh::closest`] counting only the hits (triangle, u, v) that `solid`
-    /// accepts: the ray goes on through the others (alpha cut-outs). The
-    /// test runs inside the traversal, after a triangle is hit and before it
-    /// shortens the ray, so nothing behind a rejected hit is missed.
-    pub(crate) fn closest_solid(
+    /// ignoring triangle `skip` (the one the ray leaves from), from either
+    /// side, counting only the hits (triangle, u, v) that `solid` accepts: the
+    /// ray goes on through the others (alpha cut-outs). The test runs inside
+    /// the traversal, after a triangle is hit and before it shortens the ray,
+    /// so nothing behind a rejected hit is missed. [`every_hit`] accepts all.
+    pub(crate) fn closest(
         &self,
         origin: DVec3,
         direction: DVec3,
@@ -197,8 +192,9 @@ impl Bvh {
         self.traverse(origin, direction, t_max, skip, false, solid)
     }
 
-    /// [`Bvh::occluded`] counting only the hits that `solid` accepts.
-    pub(crate) fn occluded_solid(
+    /// Whether anything `solid` accepts lies on the ray within 0 < t < `t_max`
+    /// (except `skip`).
+    pub(crate) fn occluded(
         &self,
         origin: DVec3,
         direction: DVec3,
@@ -482,9 +478,9 @@ mod tests {
                 .iter()
                 .filter_map(|t| Bvh::triangle_hit(t, o, d, f64::INFINITY).map(|h| h.0))
                 .fold(f64::INFINITY, f64::min);
-            let hit = bvh.closest(o, d, f64::INFINITY, None).map_or(f64::INFINITY, |h| h.t);
+            let hit = bvh.closest(o, d, f64::INFINITY, None, &every_hit).map_or(f64::INFINITY, |h| h.t);
             assert_eq!(hit, brute);
-            assert_eq!(bvh.occluded(o, d, f64::INFINITY, None), brute.is_finite());
+            assert_eq!(bvh.occluded(o, d, f64::INFINITY, None, &every_hit), brute.is_finite());
         }
     }
 
@@ -505,9 +501,9 @@ mod tests {
                 .collect();
             rejected += hits.iter().filter(|h| !h.1).count();
             let brute = hits.iter().filter(|h| h.1).map(|h| h.0).fold(f64::INFINITY, f64::min);
-            let hit = bvh.closest_solid(o, d, f64::INFINITY, None, &solid).map_or(f64::INFINITY, |h| h.t);
+            let hit = bvh.closest(o, d, f64::INFINITY, None, &solid).map_or(f64::INFINITY, |h| h.t);
             assert_eq!(hit, brute);
-            assert_eq!(bvh.occluded_solid(o, d, f64::INFINITY, None, &solid), brute.is_finite());
+            assert_eq!(bvh.occluded(o, d, f64::INFINITY, None, &solid), brute.is_finite());
         }
         assert!(rejected > 100, "only {rejected} hits were rejected");
     }

@@ -271,9 +271,6 @@ pub struct Reference {
     images: Vec<LinearImage>,
     /// UV sets of the triangles whose material is textured (`Triangle::texcoords`).
     texcoords: Vec<TriangleTexcoords>,
-    /// Whether any material is an alpha cut-out: only then do rays test hits
-    /// for holes (the plain traversal stays as fast as without textures).
-    has_cutouts: bool,
     env: Option<EnvSampler>,
     /// Largest absolute vertex coordinate, metres (1 for an empty scene).
     scale: f64,
@@ -382,13 +379,11 @@ impl Reference {
         let env = environment
             .filter(|m| m.width > 0 && m.height > 0)
             .map(|m| EnvSampler::new(m, options.env_rotation_degrees as f64, options.env_intensity as f64));
-        let has_cutouts = materials.iter().any(|m| m.cutoff.is_some());
         Reference {
             bvh: Bvh::new(triangles),
             materials,
             images,
             texcoords,
-            has_cutouts,
             env,
             scale,
             surface_offset: 1e-9 * scale,
@@ -555,7 +550,7 @@ impl Occluders {
 
     /// Whether any triangle crosses the segment from `a` to `b` (ends excluded).
     pub(crate) fn blocks(&self, a: DVec3, b: DVec3) -> bool {
-        self.0.occluded(a, b - a, 1.0, None)
+        self.0.occluded(a, b - a, 1.0, None, &bvh::every_hit)
     }
 }
 

@@ -29,25 +29,19 @@ fn balance(a: f64, b: f64) -> f64 {
 }
 
 impl Reference {
-    /// The closest surface along the ray (not `skip`), passing through alpha
-    /// cut-outs; the plain traversal where the scene has none.
+    /// Whether a hit at barycentrics (u, v) of `tri` is surface, not a hole.
+    fn solid(&self, tri: &Triangle, u: f64, v: f64) -> bool {
+        !self.is_cut_out(tri, u, v)
+    }
+
+    /// The closest surface along the ray (not `skip`), passing through alpha cut-outs.
     fn closest(&self, origin: DVec3, direction: DVec3, skip: Option<u32>) -> Option<Hit> {
-        if self.has_cutouts {
-            let solid = |tri: &Triangle, u, v| !self.is_cut_out(tri, u, v);
-            self.bvh.closest_solid(origin, direction, f64::INFINITY, skip, &solid)
-        } else {
-            self.bvh.closest(origin, direction, f64::INFINITY, skip)
-        }
+        self.bvh.closest(origin, direction, f64::INFINITY, skip, &|tri, u, v| self.solid(tri, u, v))
     }
 
     /// Whether a surface other than `skip` and its cut-outs blocks the ray.
     fn occluded(&self, origin: DVec3, direction: DVec3, skip: Option<u32>) -> bool {
-        if self.has_cutouts {
-            let solid = |tri: &Triangle, u, v| !self.is_cut_out(tri, u, v);
-            self.bvh.occluded_solid(origin, direction, f64::INFINITY, skip, &solid)
-        } else {
-            self.bvh.occluded(origin, direction, f64::INFINITY, skip)
-        }
+        self.bvh.occluded(origin, direction, f64::INFINITY, skip, &|tri, u, v| self.solid(tri, u, v))
     }
 
     /// One path's estimate of L_lm at `position` (already offset off the
