@@ -182,12 +182,12 @@ fn plane_side(cell: vec2<i32>, towards: i32, stored: f32, near: vec2f, r: Receiv
     let far = vec2<i32>(2 * towards, 0);
     return same_slope(vec3f(r.slope * size, -1.0), (near - stored) * step * size)
         || any(near > stored + step * r.slope + tolerance)
-        || apart(stored, near.x, far_depth(cell + far, r.tile), tolerance)
-        || apart(stored, near.y, far_depth(cell + far.yx, r.tile), tolerance);
+        || apart(stored, near.x, depth_at(cell + far, r.tile), tolerance)
+        || apart(stored, near.y, depth_at(cell + far.yx, r.tile), tolerance);
 }
 
-// The first-layer depth two texels away (clamped to the map).
-fn far_depth(at: vec2<i32>, tile: vec2<i32>) -> f32 {
+// The first-layer depth at texel `at` of the light's tile, clamped to the map.
+fn depth_at(at: vec2<i32>, tile: vec2<i32>) -> f32 {
     let hi = vec2<i32>(i32(params.map_size) - 1);
     return textureLoad(depth_maps, clamp(at, vec2<i32>(0), hi) + tile, 0);
 }
@@ -203,13 +203,11 @@ fn apart(stored: f32, near: f32, far: f32, tolerance: f32) -> bool {
 // First-layer depths of the texels left, right, above and below `cell`
 // (clamped to the map), as x, y, z, w.
 fn neighbour_depths(cell: vec2<i32>, tile: vec2<i32>) -> vec4f {
-    let lo = vec2<i32>(0);
-    let hi = vec2<i32>(i32(params.map_size) - 1);
     return vec4f(
-        textureLoad(depth_maps, max(cell - vec2<i32>(1, 0), lo) + tile, 0),
-        textureLoad(depth_maps, min(cell + vec2<i32>(1, 0), hi) + tile, 0),
-        textureLoad(depth_maps, max(cell - vec2<i32>(0, 1), lo) + tile, 0),
-        textureLoad(depth_maps, min(cell + vec2<i32>(0, 1), hi) + tile, 0),
+        depth_at(cell - vec2<i32>(1, 0), tile),
+        depth_at(cell + vec2<i32>(1, 0), tile),
+        depth_at(cell - vec2<i32>(0, 1), tile),
+        depth_at(cell + vec2<i32>(0, 1), tile),
     );
 }
 
