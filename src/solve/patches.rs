@@ -240,14 +240,16 @@ fn line_fit(
         let t = &texels.texels[i as usize];
         (t.x(width) as f64, t.y(width) as f64)
     };
-    let count = line.len() as f64;
-    let mean = line.iter().fold((0.0, 0.0), |(x, y), &i| (x + xy(i).0 / count, y + xy(i).1 / count));
-    let centre = line.iter().map(|&i| texels.texels[i as usize].position().as_dvec3()).sum::<DVec3>() / count;
-    let row = line.iter().all(|&i| xy(i).1 == mean.1);
-    let column = line.iter().all(|&i| xy(i).0 == mean.0);
+    let first = xy(*line.first()?);
+    let row = line.iter().all(|&i| xy(i).1 == first.1);
+    let column = line.iter().all(|&i| xy(i).0 == first.0);
     if row == column {
         return None;
     }
+    let count = line.len() as f64;
+    let sum = line.iter().fold((0.0, 0.0), |(x, y), &i| (x + xy(i).0, y + xy(i).1));
+    let mean = (sum.0 / count, sum.1 / count);
+    let centre = line.iter().map(|&i| texels.texels[i as usize].position().as_dvec3()).sum::<DVec3>() / count;
     // Along the line: position against the atlas coordinate that changes.
     let along = |i: u32| if row { xy(i).0 - mean.0 } else { xy(i).1 - mean.1 };
     let across = |i: u32| if row { xy(i).1 - mean.1 } else { xy(i).0 - mean.0 };
