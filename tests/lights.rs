@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use bake::environment::{EnvironmentMap, LightMode};
 use bake::fixtures::{MeshData, Placement, SceneBuilder};
-use bake::reference::{Reference, ReferenceOptions, ReferencePoint};
+use bake::reference::{Reference, ReferenceOptions};
 use glam::{Vec3, Vec3Swizzles};
 
 /// A 0.2 × 1.5 × 0.2 m post standing on a 6 × 6 m plane.
@@ -123,10 +123,7 @@ fn error_against_the_reference_falls_as_the_light_budget_grows() {
     // The same texels in every bake: the atlas does not depend on the lights.
     let sample: Vec<usize> =
         (0..first.texels.texels.len()).step_by(4).filter(|&i| first.texels.texels[i].area > 0.0).collect();
-    let points: Vec<ReferencePoint> = sample
-        .iter()
-        .map(|&i| ReferencePoint { position: first.texels.texels[i].position, normal: first.texels.texels[i].normal })
-        .collect();
+    let points = common::reference_points(&first, &sample);
     let reference = Reference::new(&first.scene, Some(&map), &ReferenceOptions { samples: 1024, ..Default::default() });
     let estimates: Vec<[f64; 3]> = reference.estimate(&points).into_iter().map(|e| e.lightmap).collect();
 

@@ -181,13 +181,7 @@ fn ball_resting_on_a_glowing_floor_sees_it_with_its_underside() {
         })
         .step_by(2)
         .collect();
-    let points: Vec<_> = lower
-        .iter()
-        .map(|&i| {
-            let t = &baked.texels.texels[i];
-            bake::reference::ReferencePoint { position: t.position, normal: t.normal }
-        })
-        .collect();
+    let points = common::reference_points(&baked, &lower);
     let options = bake::reference::ReferenceOptions { samples: 1024, ..Default::default() };
     let estimates = bake::reference::Reference::new(&baked.scene, None, &options).estimate(&points);
     // Bands by height: the contact's band first.
@@ -309,13 +303,7 @@ fn gpu_bake_matches_the_cpu_reference_with_interreflection() {
 
     let sample: Vec<usize> =
         (0..baked.texels.texels.len()).step_by(7).filter(|&i| baked.texels.texels[i].area > 0.0).collect();
-    let points: Vec<bake::reference::ReferencePoint> = sample
-        .iter()
-        .map(|&i| {
-            let t = &baked.texels.texels[i];
-            bake::reference::ReferencePoint { position: t.position, normal: t.normal }
-        })
-        .collect();
+    let points = common::reference_points(&baked, &sample);
     let options = bake::reference::ReferenceOptions { samples: 512, ..Default::default() };
     let reference = bake::reference::Reference::new(&baked.scene, Some(&map), &options);
     let estimates = reference.estimate(&points);

@@ -53,6 +53,18 @@ pub fn assert_valid(baked: &Baked) {
     }
 }
 
+/// The CPU reference's points at texels `indices` of `baked`: each texel's
+/// position and shading normal, where its lightmap value belongs.
+pub fn reference_points(baked: &Baked, indices: &[usize]) -> Vec<bake::reference::ReferencePoint> {
+    indices
+        .iter()
+        .map(|&i| {
+            let t = &baked.texels.texels[i];
+            bake::reference::ReferencePoint { position: t.position, normal: t.normal }
+        })
+        .collect()
+}
+
 /// Lightmap values (red channel) of the texels of primitive `p`, with the texels.
 pub fn values_of(baked: &Baked, p: u32) -> Vec<(bake::texelize::Texel, f32)> {
     baked
