@@ -518,15 +518,6 @@ fn grid(gpu: &Gpu, args: &Args, statues: &Statues, map: &Arc<EnvironmentMap>) ->
     Ok(())
 }
 
-/// Lights per batch the direct pass uses for `map_size`² shadow maps (as `direct::run`).
-fn direct_batch(gpu: &Gpu, map_size: u32, batch_size: u32) -> u32 {
-    let per_map = map_size as u64 * map_size as u64 * 4;
-    ((128u64 << 20) / per_map)
-        .clamp(1, 256)
-        .min(batch_size.clamp(1, 256) as u64)
-        .min(gpu.limits.max_texture_array_layers as u64) as u32
-}
-
 /// Filter widths (depth loads per pair) the bare gather is also timed with.
 const TAPS: [u32; 3] = [9, 25, 73];
 
@@ -559,7 +550,7 @@ fn ceiling_table(gpu: &Gpu, args: &Args, statues: &Statues, map: &EnvironmentMap
         let lights = LightSet::extract(map, light_mode(Mode::Cube, count)?, 0.0, 1.0);
         let direct = bake::solve::direct::run(gpu, &scene, &texels, &lights, tpu, &options.solve, &mut |_, _| {})?;
         let stats = direct.stats;
-        let batch = direct_batch(gpu, stats.shadow_map_size, options.solve.batch_size);
+        let batch = bake::solve::direct::batch_size(gpu, stats.shadow_map_size, options.solve.batch_size);
         let bare = ceiling::measure(gpu, &scene, &texels.texels, &lights, stats.shadow_map_size, batch, &TAPS)?;
         if bare.batches != stats.batches {
             bail!("the bare kernel ran {} batches where the direct pass ran {}", bare.batches, stats.batches);

@@ -116,6 +116,17 @@ fn auto_shadow_map_size(radius: f32, texels_per_unit: f32, max_dimension: u32) -
     wanted.next_power_of_two().clamp(512, 2048).min(max_dimension)
 }
 
+/// Lights per batch for `map_size`² shadow maps: as many as the depth budget
+/// holds (two layers per light: the first surface and the one behind it), at
+/// most `requested`.
+pub fn batch_size(gpu: &Gpu, map_size: u32, requested: u32) -> u32 {
+    let per_map = map_size as u64 * map_size as u64 * 4 * 2;
+    (DEPTH_BUDGET_BYTES / per_map)
+        .clamp(1, MAX_BATCH as u64)
+        .min(requested.clamp(1, MAX_BATCH) as u64)
+        .min(gpu.limits.max_texture_array_layers as u64) as u32
+}
+
 /// What the direct pass found, per texel in `TexelSet` order.
 pub struct Direct {
     /// Irradiance E (rgb).
@@ -142,12 +153,7 @@ pub fn run(
         .shadow_map_size
         .unwrap_or_else(|| auto_shadow_map_size(radius, texels_per_unit, gpu.limits.max_texture_dimension_2d))
         .min(gpu.limits.max_texture_dimension_2d);
-    // Two layers per light: the first surface and the one behind it.
-    let per_map = size as u64 * size as u64 * 4 * 2;
-    let batch = (DEPTH_BUDGET_BYTES / per_map)
-        .clamp(1, MAX_BATCH as u64)
-        .min(options.batch_size.clamp(1, MAX_BATCH) as u64)
-        .min(gpu.limits.max_texture_array_layers as u64) as u32;
+    let batch = batch_size(gpu, size, options.batch_size);
     let tiles_per_row_value = (batch as f64).sqrt().ceil() as u32;
     let texel_world = 2.0 * radius / size as f32;
     let texel_count = texels.texels.len() as u32;
