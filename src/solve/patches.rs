@@ -12,6 +12,7 @@
 
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 use crate::texelize::TexelSet;
 
@@ -81,9 +82,11 @@ pub fn build(texels: &TexelSet, target: u32, texel_size: f32) -> Patches {
         (t.chart, y / cell, x / cell, normal_axis(t.normal()))
     };
     let mut order: Vec<u32> = (0..n as u32).collect();
-    order.sort_by_key(|&i| (key(i as usize), i));
+    // The index breaks ties, so the order is one and the same in any thread count.
+    order.par_sort_unstable_by_key(|&i| (key(i as usize), i));
 
-    let mut patches = Vec::new();
+    // Each patch's range of `order`, then the patches fitted in parallel.
+    let mut ranges = Vec::new();
     let mut texel_patch = vec![0u32; n];
     let mut start = 0;
     while start < n {
@@ -93,11 +96,13 @@ pub fn build(texels: &TexelSet, target: u32, texel_size: f32) -> Patches {
             end += 1;
         }
         for &i in &order[start..end] {
-            texel_patch[i as usize] = patches.len() as u32;
+            texel_patch[i as usize] = ranges.len() as u32;
         }
-        patches.push(patch(texels, &order[start..end], start as u32, texel_size));
+        ranges.push(start..end);
         start = end;
     }
+    let patches =
+        ranges.into_par_iter().map(|r| patch(texels, &order[r.clone()], r.start as u32, texel_size)).collect();
     Patches { patches, members: order, texel_patch, cell }
 }
 

@@ -16,6 +16,7 @@
 //! leak in.
 
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 use crate::environment::luminance;
 use crate::reference::Occluders;
@@ -73,6 +74,7 @@ pub fn plan(scene: &Scene, texels: &TexelSet, irradiance: &[[f32; 3]]) -> Option
     // texels wide), so only a kink or a step (second difference) needs
     // sub-samples.
     let flagged: Vec<usize> = (0..texels.texels.len())
+        .into_par_iter()
         .filter(|&i| {
             let t = &texels.texels[i];
             t.area > 0.0
@@ -90,47 +92,53 @@ pub fn plan(scene: &Scene, texels: &TexelSet, irradiance: &[[f32; 3]]) -> Option
     if flagged.is_empty() {
         return None;
     }
-    let mut occluders: Option<Occluders> = None;
+    let occluders = Occluders::new(scene);
+    // Each flagged texel's sub-samples, in texel order (rayon keeps it).
+    let per_texel: Vec<Vec<Texel>> = flagged
+        .par_iter()
+        .map(|&i| {
+            let t = &texels.texels[i];
+            // Inside its chart: all eight neighbours are its surface.
+            let mut around = [[0usize; 3]; 3];
+            let inside = (-1..=1i64).all(|dy| {
+                (-1..=1i64).all(|dx| {
+                    at(t, dx, dy).is_some_and(|j| {
+                        let n = &texels.texels[j];
+                        around[(dy + 1) as usize][(dx + 1) as usize] = j;
+                        n.chart == t.chart && n.area > 0.0 && n.normal().dot(t.normal()) >= SAME_SURFACE_COS
+                    })
+                })
+            });
+            if !inside {
+                return Vec::new();
+            }
+            let p = |j: usize| texels.texels[j].position();
+            let du = (p(around[1][2]) - p(around[1][0])) * 0.5;
+            let dv = (p(around[2][1]) - p(around[0][1])) * 0.5;
+            let lift = DVec3::from(Vec3::from(t.face_normal)) * LIFT_TEXELS * du.length().min(dv.length()) as f64;
+            let centre = t.position().as_dvec3() + lift;
+            PATTERN
+                .iter()
+                .enumerate()
+                .filter_map(|(k, [ox, oy])| {
+                    let position = t.position() + du * (ox / 16.0) + dv * (oy / 16.0);
+                    (!occluders.blocks(centre, position.as_dvec3() + lift)).then(|| Texel {
+                        position: position.to_array(),
+                        // A different filter turn per sub-sample (the direct pass turns its taps by index).
+                        index: t.index.wrapping_mul(PATTERN.len() as u32).wrapping_add(k as u32),
+                        ..*t
+                    })
+                })
+                .collect()
+        })
+        .collect();
     let mut samples = Vec::new();
     let mut owner = Vec::new();
     let mut count = 0;
-    for i in flagged {
-        let t = &texels.texels[i];
-        // Inside its chart: all eight neighbours are its surface.
-        let mut around = [[0usize; 3]; 3];
-        let inside = (-1..=1i64).all(|dy| {
-            (-1..=1i64).all(|dx| {
-                at(t, dx, dy).is_some_and(|j| {
-                    let n = &texels.texels[j];
-                    around[(dy + 1) as usize][(dx + 1) as usize] = j;
-                    n.chart == t.chart && n.area > 0.0 && n.normal().dot(t.normal()) >= SAME_SURFACE_COS
-                })
-            })
-        });
-        if !inside {
-            continue;
-        }
-        let p = |j: usize| texels.texels[j].position();
-        let du = (p(around[1][2]) - p(around[1][0])) * 0.5;
-        let dv = (p(around[2][1]) - p(around[0][1])) * 0.5;
-        let occluders = occluders.get_or_insert_with(|| Occluders::new(scene));
-        let lift = DVec3::from(Vec3::from(t.face_normal)) * LIFT_TEXELS * du.length().min(dv.length()) as f64;
-        let centre = t.position().as_dvec3() + lift;
-        let before = samples.len();
-        for (k, [ox, oy]) in PATTERN.iter().enumerate() {
-            let position = t.position() + du * (ox / 16.0) + dv * (oy / 16.0);
-            if occluders.blocks(centre, position.as_dvec3() + lift) {
-                continue;
-            }
-            samples.push(Texel {
-                position: position.to_array(),
-                // A different filter turn per sub-sample (the direct pass turns its taps by index).
-                index: t.index.wrapping_mul(PATTERN.len() as u32).wrapping_add(k as u32),
-                ..*t
-            });
-            owner.push(i as u32);
-        }
-        count += usize::from(samples.len() > before);
+    for (&i, subs) in flagged.iter().zip(per_texel) {
+        count += usize::from(!subs.is_empty());
+        owner.extend(std::iter::repeat_n(i as u32, subs.len()));
+        samples.extend(subs);
     }
     (count > 0).then_some(Plan {
         samples: TexelSet { width: texels.width, height: texels.height, texels: samples },
