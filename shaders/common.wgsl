@@ -154,8 +154,16 @@ struct BounceParams {
     receiver_offset: f32,  // receivers test a point this far along their face normal, metres
     max_slope: f32,
     chunk_count: u32,      // workgroups of MEASURE_CHUNK texels in the measure pass
+    atlas_width: u32,      // texels per atlas row (a texel's index is x + y · width)
+    cell: u32,             // side of the atlas cell patches are cut from, texels
     _pad1: u32,
+    _pad2: u32,
 }
+
+// A shooter patch is split into SUB_CELLS × SUB_CELLS parts of its atlas
+// cell: where in the patch its unshot light is, for the near field.
+const SUB_CELLS: u32 = 4u;
+const SUB_CELL_COUNT: u32 = 16u;
 
 // Totals the select pass leaves for the CPU. Mirrors `bounce::Stats`.
 struct BounceStats {

@@ -1,7 +1,8 @@
 // Per-patch unshot light (design notes, algorithm step 4): each patch sums
 // ΔL·A over its texels (a GPU reduction; the seed reads a 1×1 buffer). One
 // invocation per patch, members in a fixed order, so the sums are
-// deterministic.
+// deterministic. Once the batch's shooters are chosen, `shooter_cells` sums
+// each shooter's light by parts of its patch, for the near field.
 
 @group(0) @binding(0) var<uniform> params: BounceParams;
 @group(0) @binding(1) var<storage, read> texels: array<Texel>;
@@ -15,6 +16,11 @@
 // power; the area centroid when it has none). A patch a wall cuts through
 // (a floor cell half inside a room) then shoots from its lit side.
 @group(0) @binding(6) var<storage, read_write> patch_origin: array<vec4f>;
+// The batch's shooters (chosen by solve_select).
+@group(0) @binding(7) var<storage, read> shooters: array<Shooter>;
+// Per shooter slot k and sub-cell c of its patch: at k·2·SUB_CELL_COUNT + c
+// (Σ ΔL·A rgb, Σ A), at SUB_CELL_COUNT further the area centroid.
+@group(0) @binding(8) var<storage, read_write> shooter_cells: array<vec4f>;
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -43,4 +49,40 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     } else {
         patch_origin[j] = vec4f(own.position, 0.0);
     }
+}
+
+// The sub-cell of its patch a texel lies in: its place in the patch's atlas
+// cell, SUB_CELLS to a side.
+fn sub_cell(texel: Texel) -> u32 {
+    let x = texel.index % params.atlas_width;
+    let y = texel.index / params.atlas_width;
+    let cx = (x % params.cell) * SUB_CELLS / params.cell;
+    let cy = (y % params.cell) * SUB_CELLS / params.cell;
+    return cy * SUB_CELLS + cx;
+}
+
+// One workgroup per shooter slot, one invocation per sub-cell; run before
+// the shoot pass clears the shooters' unshot light.
+@compute @workgroup_size(16)
+fn shooter_cells_of_batch(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) c: u32) {
+    let k = group.x;
+    let s = shooters[k];
+    var power = vec3f(0.0);
+    var area = 0.0;
+    var centroid = vec3f(0.0);
+    if (s.patch_index != NO_TRIANGLE) {
+        let own = patches[s.patch_index];
+        for (var m = 0u; m < own.count; m++) {
+            let i = members[own.first + m];
+            let texel = texels[i];
+            if (sub_cell(texel) == c) {
+                power += unshot[i].rgb * texel.area;
+                area += texel.area;
+                centroid += texel.position * texel.area;
+            }
+        }
+    }
+    let base = k * 2u * SUB_CELL_COUNT;
+    shooter_cells[base + c] = vec4f(power, area);
+    shooter_cells[base + SUB_CELL_COUNT + c] = vec4f(select(vec3f(0.0), centroid / area, area > 0.0), 0.0);
 }

@@ -46,6 +46,9 @@
 // `main` for `near_field` (the list's order varies; each texel's sum does not).
 @group(0) @binding(10) var<storage, read_write> near_list: NearList;
 
+// Each shooter's unshot light by sub-cells of its patch (solve_patch_power.wgsl).
+@group(0) @binding(11) var<storage, read> shooter_cells: array<vec4f>;
+
 struct NearList {
     count: atomic<u32>,
     // (texel index, bit k set for each shooter slot k in whose near field it is)
@@ -307,6 +310,30 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_
     }
 }
 
+// The unshot radiance a near-field receiver takes from shooter `s` (slot
+// `k`): the mean of its sub-cells', each weighted by its (bounded) point form
+// factor to the receiver. A patch lit only beside a contact then lights the
+// contact's shadow by the dark sub-cells under it, not by the patch's mean;
+// the exact polygon form factor still sets how much arrives. A patch lit
+// evenly gives its mean.
+fn near_radiance(texel: Texel, s: Shooter, k: u32) -> vec3f {
+    let base = k * 2u * SUB_CELL_COUNT;
+    var sum = vec3f(0.0);
+    var weight = 0.0;
+    for (var c = 0u; c < SUB_CELL_COUNT; c++) {
+        let cell = shooter_cells[base + c];
+        let d = shooter_cells[base + SUB_CELL_COUNT + c].xyz - texel.position;
+        let r2 = dot(d, d);
+        // cos θ_i cos θ_j · A / (π r² + A), the cosines' 1/r² folded in.
+        let w = max(dot(texel.normal, d), 0.0) * max(-dot(s.normal, d), 0.0) * cell.w / max(r2 * (PI * r2 + cell.w), 1e-30);
+        if (cell.w > 0.0 && r2 > 0.0) {
+            sum += w * cell.rgb / cell.w;
+            weight += w;
+        }
+    }
+    return select(s.radiance, sum / weight, weight > 0.0);
+}
+
 // The listed receivers' near-field light, added after `main`'s far field,
 // in slot order: the same sums whatever order the list is in.
 @compute @workgroup_size(64)
@@ -320,8 +347,9 @@ fn near_field(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgro
     let texel = texels[i];
     var gathered = vec3f(0.0);
     for (var slots = entry.y; slots != 0u; slots &= slots - 1u) {
-        let s = shooters[firstTrailingBit(slots)];
-        gathered += near_form_factor(texel, s) * s.radiance;
+        let k = firstTrailingBit(slots);
+        let s = shooters[k];
+        gathered += near_form_factor(texel, s) * near_radiance(texel, s, k);
     }
     lightmap[i] += vec4f(gathered, 0.0);
     unshot[i] += vec4f(texel.albedo * gathered, luminance(gathered) * texel.area);

@@ -38,6 +38,9 @@ use crate::texelize::TexelSet;
 
 /// Shooter slots per batch (`MAX_SHOOTERS` in solve_shoot.wgsl).
 pub const MAX_SHOOTERS: u32 = 64;
+/// Parts a shooter patch's light is summed by for the near field
+/// (`SUB_CELL_COUNT` in common.wgsl).
+const SUB_CELL_COUNT: usize = 16;
 
 /// Texels one workgroup of the form-factor measure pass sums
 /// (`MEASURE_CHUNK` in solve_shoot.wgsl).
@@ -175,7 +178,9 @@ struct BounceParams {
     receiver_offset: f32,
     max_slope: f32,
     chunk_count: u32,
-    _pad: u32,
+    atlas_width: u32,
+    cell: u32,
+    _pad: [u32; 2],
 }
 
 /// Mirrors `Shooter` in common.wgsl.
@@ -231,6 +236,8 @@ struct Resources {
     partials: wgpu::Buffer,
     /// Receivers in a shooter's near field: a count, then (texel, slots) pairs.
     near_list: wgpu::Buffer,
+    /// Each shooter's unshot light and area centroid by sub-cells of its patch.
+    shooter_cells: wgpu::Buffer,
     depth_view: wgpu::TextureView,
     front_view: wgpu::TextureView,
     casters: Casters,
@@ -239,6 +246,8 @@ struct Resources {
 struct Pipelines {
     power: (wgpu::ComputePipeline, wgpu::BindGroup),
     select: (wgpu::ComputePipeline, wgpu::BindGroup),
+    /// The chosen shooters' light by sub-cells; shares the power pass's bind group.
+    shooter_cells: wgpu::ComputePipeline,
     /// Opaque and alpha-cut-out casters, and their bind group.
     hemicube: (wgpu::RenderPipeline, wgpu::RenderPipeline, wgpu::BindGroup),
     /// The form-factor normalization (measure, then finish); they share the shots' bind group.
@@ -321,7 +330,9 @@ pub fn run(
         receiver_offset: 0.5 * texel_world,
         max_slope: 10.0,
         chunk_count: (texels.texels.len() as u32).div_ceil(MEASURE_CHUNK).max(1),
-        _pad: 0,
+        atlas_width: texels.width,
+        cell: patches.cell,
+        _pad: [0; 2],
     };
     let patch_params = BounceParams { row_stride: patch_groups_x * 64, ..params };
 
@@ -357,6 +368,9 @@ pub fn run(
             pass.set_pipeline(&pipelines.select.0);
             pass.set_bind_group(0, &pipelines.select.1, &[]);
             pass.dispatch_workgroups(1, 1, 1);
+            pass.set_pipeline(&pipelines.shooter_cells);
+            pass.set_bind_group(0, &pipelines.power.1, &[]);
+            pass.dispatch_workgroups(shooter_count, 1, 1);
         }
         gpu.queue.submit([encoder.finish()]);
         let stats: GpuStats = read_buffer(gpu, &resources.stats, 1)?[0];
@@ -562,6 +576,12 @@ fn resources(
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         }),
+        shooter_cells: gpu.storage_buffer(
+            "solve_patch_power shooter cells",
+            // Per slot and sub-cell: unshot power and area, then the centroid.
+            &vec![[0f32; 4]; MAX_SHOOTERS as usize * 2 * SUB_CELL_COUNT],
+            none,
+        ),
         depth_view: depth.create_view(&Default::default()),
         front_view: front.create_view(&Default::default()),
         casters: Casters::new(gpu, scene),
@@ -587,13 +607,26 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             gpu::storage_entry(4, true, compute),
             gpu::storage_entry(5, false, compute),
             gpu::storage_entry(6, false, compute),
+            // 7: the batch's shooters, 8: their light by sub-cells (written)
+            gpu::storage_entry(7, true, compute),
+            gpu::storage_entry(8, false, compute),
         ],
     );
     let power_group = gpu::bind_buffers(
         gpu,
         "solve_patch_power",
         &power_layout,
-        &[patch_params, &r.texels, &r.patches, &r.members, &r.unshot, &r.patch_power, &r.patch_origin],
+        &[
+            patch_params,
+            &r.texels,
+            &r.patches,
+            &r.members,
+            &r.unshot,
+            &r.patch_power,
+            &r.patch_origin,
+            &r.shooters,
+            &r.shooter_cells,
+        ],
     );
 
     let select_layout = layout(
@@ -665,6 +698,8 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             gpu::texture_2d_entry(9, compute, wgpu::TextureSampleType::Float { filterable: false }),
             // 10: receivers in a shooter's near field (listed, then gathered)
             gpu::storage_entry(10, false, compute),
+            // 11: the shooters' light by sub-cells
+            gpu::storage_entry(11, true, compute),
         ],
     );
     let shoot_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -682,6 +717,7 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             wgpu::BindGroupEntry { binding: 8, resource: r.partials.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 9, resource: wgpu::BindingResource::TextureView(&r.front_view) },
             wgpu::BindGroupEntry { binding: 10, resource: r.near_list.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 11, resource: r.shooter_cells.as_entire_binding() },
         ],
     });
 
@@ -713,6 +749,7 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
 
     Pipelines {
         power: (gpu.compute_pipeline(Shader::SolvePatchPower, "main", &[&power_layout]), power_group),
+        shooter_cells: gpu.compute_pipeline(Shader::SolvePatchPower, "shooter_cells_of_batch", &[&power_layout]),
         select: (gpu.compute_pipeline(Shader::SolveSelect, "main", &[&select_layout]), select_group),
         hemicube: (opaque, masked, hemicube_group),
         measure: gpu.compute_pipeline(Shader::SolveShoot, "measure", &[&shoot_layout]),
