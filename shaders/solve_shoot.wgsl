@@ -325,7 +325,8 @@ fn near_radiance(texel: Texel, s: Shooter, k: u32) -> vec3f {
         let d = shooter_cells[base + SUB_CELL_COUNT + c].xyz - texel.position;
         let r2 = dot(d, d);
         // cos θ_i cos θ_j · A / (π r² + A), the cosines' 1/r² folded in.
-        let w = max(dot(texel.normal, d), 0.0) * max(-dot(s.normal, d), 0.0) * cell.w / max(r2 * (PI * r2 + cell.w), 1e-30);
+        let cosines = max(dot(texel.normal, d), 0.0) * max(-dot(s.normal, d), 0.0);
+        let w = cosines * cell.w / max(r2 * (PI * r2 + cell.w), 1e-30);
         if (cell.w > 0.0 && r2 > 0.0) {
             sum += w * cell.rgb / cell.w;
             weight += w;

@@ -138,6 +138,26 @@ fn ball_and_floor(ball_height: f32, radius: f32, glowing_ball: bool) -> SceneBui
     builder
 }
 
+/// Bake / independent CPU path tracer, summed over texels `lower` of `baked`
+/// by height in three bands of `height` above the floor, the contact's first.
+fn bands_against_reference(
+    baked: &bake::Baked,
+    lower: &[usize],
+    height: f32,
+    environment: Option<&EnvironmentMap>,
+) -> [f64; 3] {
+    let points = common::reference_points(baked, lower);
+    let options = bake::reference::ReferenceOptions { samples: 1024, ..Default::default() };
+    let estimates = bake::reference::Reference::new(&baked.scene, environment, &options).estimate(&points);
+    let mut bands = [(0.0f64, 0.0f64); 3];
+    for (&i, estimate) in lower.iter().zip(&estimates) {
+        let band = ((baked.texels.texels[i].position[1] / height * 3.0) as usize).min(2);
+        bands[band].0 += baked.solution.lightmap[i][0] as f64;
+        bands[band].1 += estimate.lightmap[0];
+    }
+    bands.map(|(bake, reference)| bake / reference)
+}
+
 #[test]
 fn glowing_ball_lights_the_floor_as_the_inverse_square_law_says() {
     // A sphere of radius R and radiance 1 entirely above a point of the
@@ -181,18 +201,7 @@ fn ball_resting_on_a_glowing_floor_sees_it_with_its_underside() {
         })
         .step_by(2)
         .collect();
-    let points = common::reference_points(&baked, &lower);
-    let options = bake::reference::ReferenceOptions { samples: 1024, ..Default::default() };
-    let estimates = bake::reference::Reference::new(&baked.scene, None, &options).estimate(&points);
-    // Bands by height: the contact's band first.
-    let mut bands = [(0.0f64, 0.0f64); 3];
-    for (&i, estimate) in lower.iter().zip(&estimates) {
-        let band = ((baked.texels.texels[i].position[1] / radius * 3.0) as usize).min(2);
-        bands[band].0 += baked.solution.lightmap[i][0] as f64;
-        bands[band].1 += estimate.lightmap[0];
-    }
-    for (k, (bake, reference)) in bands.iter().enumerate() {
-        let ratio = bake / reference;
+    for (k, ratio) in bands_against_reference(&baked, &lower, radius, None).into_iter().enumerate() {
         eprintln!("underside band {k} (from the contact up): bake / reference {ratio:.4}");
         assert!((ratio - 1.0).abs() < 0.05, "band {k}: {ratio}");
     }
@@ -226,17 +235,7 @@ fn torus_resting_on_a_sunlit_floor_sees_the_shadow_beneath_it_with_its_underside
             t.primitive == 1 && t.area > 0.0 && t.position[1] < minor
         })
         .collect();
-    let points = common::reference_points(&baked, &lower);
-    let options = bake::reference::ReferenceOptions { samples: 1024, ..Default::default() };
-    let estimates = bake::reference::Reference::new(&baked.scene, Some(&sun), &options).estimate(&points);
-    // Bands by height: the contact's band first.
-    let mut bands = [(0.0f64, 0.0f64); 3];
-    for (&i, estimate) in lower.iter().zip(&estimates) {
-        let band = ((baked.texels.texels[i].position[1] / minor * 3.0) as usize).min(2);
-        bands[band].0 += baked.solution.lightmap[i][0] as f64;
-        bands[band].1 += estimate.lightmap[0];
-    }
-    let ratios = bands.map(|(bake, reference)| bake / reference);
+    let ratios = bands_against_reference(&baked, &lower, minor, Some(&sun));
     eprintln!("ring underside, bake / reference by band from the contact up: {ratios:.3?}");
     // The contact's band keeps some excess: the floor's own shadow there is
     // a few texels wide.
