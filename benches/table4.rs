@@ -548,7 +548,7 @@ fn ceiling_table(gpu: &Gpu, args: &Args, statues: &Statues, map: &EnvironmentMap
         let (wall, cpu) = (Instant::now(), cpu_seconds());
         let tpu = texels_per_unit(&scene, &options)?;
         let lights = LightSet::extract(map, light_mode(Mode::Cube, count)?, 0.0, 1.0);
-        let direct = bake::solve::direct::run(gpu, &scene, &texels, &lights, tpu, &options.solve, &mut |_, _| {})?;
+        let direct = bake::solve::direct::run(gpu, &scene, &texels, &[], &lights, tpu, &options.solve, &mut |_, _| {})?;
         let stats = direct.stats;
         let batch = bake::solve::direct::batch_size(gpu, stats.shadow_map_size, options.solve.batch_size);
         let bare = ceiling::measure(gpu, &scene, &texels.texels, &lights, stats.shadow_map_size, batch, &TAPS)?;
@@ -614,7 +614,7 @@ fn direct_once(
         let (wall, cpu) = (Instant::now(), cpu_seconds());
         let solve = &options.solve;
         let direct =
-            bake::solve::direct::run(gpu, &scene, &texels, &lights, atlas.texels_per_unit, solve, &mut |_, _| {})?;
+            bake::solve::direct::run(gpu, &scene, &texels, &[], &lights, atlas.texels_per_unit, solve, &mut |_, _| {})?;
         if direct.stats.seconds < best {
             best = direct.stats.seconds;
             cores = (cpu_seconds() - cpu) / wall.elapsed().as_secs_f64();

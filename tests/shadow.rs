@@ -6,7 +6,7 @@
 
 mod common;
 
-use bake::environment::{EnvironmentMap, LightMode};
+use bake::environment::{EnvironmentMap, Light, LightMode};
 use bake::fixtures::{MeshData, Placement, SceneBuilder};
 use glam::{Quat, Vec3, Vec3Swizzles};
 
@@ -62,6 +62,18 @@ fn lit_share(centre: Vec3, du: Vec3, dv: Vec3, lit: impl Fn(Vec3) -> bool) -> f3
 /// filter gives it, not the 0 or 1 of its centre.
 #[test]
 fn a_hard_shadow_edge_is_box_filtered_over_each_texels_footprint() {
+    hard_shadow_edge_is_box_filtered(1);
+}
+
+/// The same edge with the sun's disc split into 512 lights: the texels to
+/// supersample are then flagged by a preview under merged lights, and the
+/// full set's depth maps gather texels and sub-samples in one pass.
+#[test]
+fn a_hard_shadow_edge_is_box_filtered_under_a_light_set_too_large_to_render_twice() {
+    hard_shadow_edge_is_box_filtered(512);
+}
+
+fn hard_shadow_edge_is_box_filtered(sun_parts: usize) {
     let gpu = common::gpu();
     let turn = Quat::from_rotation_y(30f32.to_radians());
     let side = 3.0f32;
@@ -76,7 +88,21 @@ fn a_hard_shadow_edge_is_box_filtered_over_each_texels_footprint() {
     );
     let cos_radius = 0.5f32.to_radians().cos();
     let sun = EnvironmentMap::from_fn(2048, 1024, |d| if d[1] >= cos_radius { [1e3; 3] } else { [0.0; 3] });
-    let lights = common::lights(&sun, LightMode::Budget { count: 32 });
+    let mut lights = common::lights(&sun, LightMode::Budget { count: 32 });
+    assert_eq!(lights.lights.len(), 1, "a uniform disc is one light");
+    let whole = lights.lights[0];
+    // Equal parts of the disc, placed by a sunflower spiral.
+    lights.lights = (0..sun_parts)
+        .map(|k| {
+            let theta = 0.5f32.to_radians() * ((k as f32 + 0.5) / sun_parts as f32).sqrt();
+            let phi = k as f32 * 2.399_963;
+            Light {
+                direction: [theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()],
+                solid_angle: whole.solid_angle / sun_parts as f32,
+                ..whole
+            }
+        })
+        .collect();
     let local = |p: Vec3| turn.inverse() * p;
     let lit = |p: Vec3| local(p).xz().abs().max_element() > side / 2.0;
 

@@ -7,6 +7,7 @@
 //! Shadow-map bias is scaled by the shadow map's texel size in world units,
 //! so it is the same fraction of the scene at 1 mm and at 10 km.
 
+use std::borrow::Cow;
 use std::time::Instant;
 
 use anyhow::Result;
@@ -19,7 +20,7 @@ use super::casters::Casters;
 use crate::environment::LightSet;
 use crate::gpu::{self, Gpu, Shader, read_buffer};
 use crate::scene::Scene;
-use crate::texelize::TexelSet;
+use crate::texelize::{Texel, TexelSet};
 
 /// Lights per batch the uniform array holds (`MAX_BATCH` in common.wgsl).
 const MAX_BATCH: u32 = 256;
@@ -131,17 +132,23 @@ pub fn batch_size(gpu: &Gpu, map_size: u32, requested: u32) -> u32 {
 pub struct Direct {
     /// Irradiance E (rgb).
     pub irradiance: Vec<[f32; 3]>,
+    /// Irradiance at the extra points gathered with the texels (`run`'s
+    /// `samples`), in their order.
+    pub at_samples: Vec<[f32; 3]>,
     /// Share of the texel's hemisphere (cosine-weighted) that scene geometry
     /// covers, as seen along the light directions: where its reflected light goes.
     pub coverage: Vec<f32>,
     pub stats: DirectStats,
 }
 
-/// Gathers the environment's light at every texel.
+/// Gathers the environment's light at every texel, and at `samples` (points
+/// that are not texels, such as sub-samples) from the same depth maps.
+#[allow(clippy::too_many_arguments)]
 pub fn run(
     gpu: &Gpu,
     scene: &Scene,
     texels: &TexelSet,
+    samples: &[Texel],
     lights: &LightSet,
     texels_per_unit: f32,
     options: &SolveOptions,
@@ -156,7 +163,12 @@ pub fn run(
     let batch = batch_size(gpu, size, options.batch_size);
     let tiles_per_row_value = (batch as f64).sqrt().ceil() as u32;
     let texel_world = 2.0 * radius / size as f32;
-    let texel_count = texels.texels.len() as u32;
+    let points: Cow<[Texel]> = if samples.is_empty() {
+        Cow::Borrowed(&texels.texels)
+    } else {
+        Cow::Owned([&texels.texels[..], samples].concat())
+    };
+    let texel_count = points.len() as u32;
     let (groups_x, groups_y) = gpu.dispatch_size(texel_count, 64);
     let mut params = DirectParams {
         centre: centre.to_array(),
@@ -177,17 +189,11 @@ pub fn run(
 
     let params_buffer = gpu.uniform_buffer("solve_direct params", &params);
     let lights_buffer = gpu.uniform_buffer("solve_direct lights", &[DirectLight::default(); MAX_BATCH as usize]);
-    let texel_buffer = gpu.storage_buffer("solve_direct texels", &texels.texels, wgpu::BufferUsages::empty());
-    let coverage = gpu.storage_buffer(
-        "solve_direct coverage",
-        &vec![[0.0f32; 2]; texels.texels.len()],
-        wgpu::BufferUsages::COPY_SRC,
-    );
-    let irradiance = gpu.storage_buffer(
-        "solve_direct irradiance",
-        &vec![[0.0f32; 4]; texels.texels.len()],
-        wgpu::BufferUsages::COPY_SRC,
-    );
+    let texel_buffer = gpu.storage_buffer("solve_direct texels", &points, wgpu::BufferUsages::empty());
+    let coverage =
+        gpu.storage_buffer("solve_direct coverage", &vec![[0.0f32; 2]; points.len()], wgpu::BufferUsages::COPY_SRC);
+    let irradiance =
+        gpu.storage_buffer("solve_direct irradiance", &vec![[0.0f32; 4]; points.len()], wgpu::BufferUsages::COPY_SRC);
     let tiles_per_row = (batch as f64).sqrt().ceil() as u32;
     let tile_rows = batch.div_ceil(tiles_per_row);
     let depth_atlas =
@@ -365,10 +371,12 @@ pub fn run(
         batches += 1;
         progress((chunk_index * batch as usize + chunk.len()) as u64, total);
     }
-    let sums: Vec<[f32; 4]> = read_buffer(gpu, &irradiance, texels.texels.len())?;
-    let covered: Vec<[f32; 2]> = read_buffer(gpu, &coverage, texels.texels.len())?;
+    let count = texels.texels.len();
+    let sums: Vec<[f32; 4]> = read_buffer(gpu, &irradiance, points.len())?;
+    let covered: Vec<[f32; 2]> = read_buffer(gpu, &coverage, count)?;
     gpu.check("solve (direct)")?;
-    let irradiance: Vec<[f32; 3]> = sums.into_iter().map(|e| [e[0], e[1], e[2]]).collect();
+    let mut irradiance: Vec<[f32; 3]> = sums.into_iter().map(|e| [e[0], e[1], e[2]]).collect();
+    let at_samples = irradiance.split_off(count);
     let stats = DirectStats {
         lights: lights.lights.len(),
         batches,
@@ -381,6 +389,7 @@ pub fn run(
     Ok(Direct {
         stats,
         irradiance,
+        at_samples,
         coverage: covered.iter().map(|c| if c[1] > 0.0 { c[0] / c[1] } else { 0.0 }).collect(),
     })
 }

@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 use crate::environment::LightSet;
 use crate::gpu::Gpu;
 use crate::scene::Scene;
-use crate::texelize::TexelSet;
+use crate::texelize::{Texel, TexelSet};
 pub use bounce::{BounceOptions, BounceStats, TracePoint};
 
 /// Options of the solve, with their defaults.
@@ -93,17 +93,9 @@ pub fn run(
     let mut supersampled = 0;
     match lights {
         Some(lights) if !lights.lights.is_empty() => {
-            let mut direct = direct::run(gpu, scene, texels, lights, texels_per_unit, options, progress)?;
-            let start = std::time::Instant::now();
-            let plan = options.supersample.then(|| supersample::plan(scene, texels, &direct.irradiance)).flatten();
-            if let Some(plan) = plan {
-                let sub = direct::run(gpu, scene, &plan.samples, lights, texels_per_unit, options, progress)?;
-                supersample::fold(&plan, &sub.irradiance, &mut direct.irradiance);
-                direct.stats.evaluations += sub.stats.evaluations;
-                direct.stats.seconds += start.elapsed().as_secs_f64();
-                direct.stats.power_received = direct::power_received(texels, &direct.irradiance);
-                supersampled = plan.texels;
-            }
+            let (direct, texels_supersampled) =
+                direct_light(gpu, scene, texels, lights, texels_per_unit, options, progress)?;
+            supersampled = texels_supersampled;
             for (value, e) in lightmap.iter_mut().zip(&direct.irradiance) {
                 *value = e.map(|c| c / std::f32::consts::PI);
             }
@@ -142,4 +134,53 @@ pub fn run(
         bounce_stats = Some(stats);
     }
     Ok(Solution { lightmap, direct: direct_stats, bounce: bounce_stats, supersampled, skipped })
+}
+
+/// The direct pass with the supersample fix-up when it is asked for, and how
+/// many texels it supersampled.
+fn direct_light(
+    gpu: &Gpu,
+    scene: &Scene,
+    texels: &TexelSet,
+    lights: &LightSet,
+    texels_per_unit: f32,
+    options: &SolveOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<(direct::Direct, usize)> {
+    let mut gather = |points: &TexelSet, samples: &[Texel], lights: &LightSet| {
+        direct::run(gpu, scene, points, samples, lights, texels_per_unit, options, progress)
+    };
+    if !options.supersample {
+        return Ok((gather(texels, &[], lights)?, 0));
+    }
+    let start = std::time::Instant::now();
+    // Under many lights, a preview under merged ones flags the texels and
+    // one full pass gathers them with their sub-samples. Under few, the full
+    // pass flags them and a second one gathers the sub-samples.
+    let preview = supersample::preview_lights(lights);
+    let first = gather(texels, &[], preview.as_ref().unwrap_or(lights))?;
+    let plan = supersample::plan(scene, texels, &first.irradiance);
+    let (mut direct, at_samples) = match (&preview, &plan) {
+        (None, None) => return Ok((first, 0)),
+        (None, Some(plan)) => {
+            let sub = gather(&plan.samples, &[], lights)?;
+            let mut direct = first;
+            direct.stats.evaluations += sub.stats.evaluations;
+            (direct, sub.irradiance)
+        }
+        (Some(_), _) => {
+            let samples = plan.as_ref().map_or(&[][..], |p| &p.samples.texels);
+            let mut direct = gather(texels, samples, lights)?;
+            direct.stats.evaluations += first.stats.evaluations;
+            let at_samples = std::mem::take(&mut direct.at_samples);
+            (direct, at_samples)
+        }
+    };
+    direct.stats.seconds = start.elapsed().as_secs_f64();
+    let Some(plan) = plan else {
+        return Ok((direct, 0));
+    };
+    supersample::fold(&plan, &at_samples, &mut direct.irradiance);
+    direct.stats.power_received = direct::power_received(texels, &direct.irradiance);
+    Ok((direct, plan.texels))
 }
