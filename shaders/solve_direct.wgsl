@@ -29,10 +29,16 @@ const MAX_MARCH: f32 = 24.0;
 // stay about three shadow-map texels apart, up to 32.
 const MIN_SEARCH_TAPS: u32 = 8u;
 const MAX_SEARCH_TAPS: u32 = 32u;
-// Share of the depth bias by which a surface seen from behind must lie in
-// front of the receiver to cover it: rounding only, since it is not the
-// receiver's own surface.
+// Share of the depth bias by which a surface seen from behind may lie behind
+// the receiver and still cover it, or must lie in front of it where it is in
+// the receiver's plane: rounding only, since it is not the receiver's own
+// surface. A receiver touching it at an angle (a ring's underside on the
+// floor, texels on the circle where they meet) lies on it.
 const COVER_TOLERANCE: f32 = 0.125;
+// Depth slopes (tangents of the tilt from the light's axis, to within one
+// in 1 + |tangent| by this share) at which a surface seen from behind is in
+// the receiver's plane: about a degree near normal incidence.
+const COPLANAR_SLOPE: f32 = 0.02;
 // Shadow rays (filter taps) per light where the search found a blocker.
 const MAX_RAYS: u32 = 16u;
 // Widest penumbra the percentage-closer filter takes, shadow-map texels
@@ -105,9 +111,10 @@ fn seen_from_behind(stored: f32) -> bool {
 
 // Whether the surface the depth map holds at texel `cell` (depth `stored`,
 // neighbours `n` as `neighbour_depths` gives them) turns its back to the
-// light in front of the receiver's surface point: a surface the receiver
-// nearly touches, seen from behind (the floor under a ball resting on it,
-// lit from below). It is never the receiver itself, so it needs no plane
+// light in front of the receiver's surface point, or at it: a surface the
+// receiver nearly touches or touches, seen from behind (the floor under a
+// ball resting on it, lit from below). It is never the receiver itself (a
+// light behind the receiver's own face is blocked by it anyway), so it needs no plane
 // and only a rounding tolerance; but the test point, lifted a shadow-map
 // texel off the surface, may have passed it. The stored surface is carried
 // to the receiver's own map position along its slope (from its smoother
@@ -115,7 +122,13 @@ fn seen_from_behind(stored: f32) -> bool {
 // far more than the millimetre under the ball.
 fn covers_receiver(cell: vec2f, stored: f32, slope: vec2f, r: Receiver) -> bool {
     let there = stored + dot(slope, r.surface_pixel - (cell + 0.5));
-    return seen_from_behind(stored) && there < r.surface_z - COVER_TOLERANCE * r.bias;
+    // A surface in the receiver's own plane (a box's bottom face on the
+    // floor) must lie in front of it to cover it, as a path tracer finds:
+    // the two coincide. One that meets the receiver at an angle covers it
+    // at the receiver's own depth (a ring's underside on the floor).
+    let coplanar = all(abs(slope - r.slope) <= COPLANAR_SLOPE * (abs(r.slope) + 1.0 / params.map_size));
+    let reach = select(COVER_TOLERANCE, -COVER_TOLERANCE, coplanar) * r.bias;
+    return seen_from_behind(stored) && there < r.surface_z + reach;
 }
 
 // The stored surface's depth change per texel along x and y, from the side

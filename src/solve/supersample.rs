@@ -132,6 +132,13 @@ pub fn plan(scene: &Scene, texels: &TexelSet, irradiance: &[[f32; 3]]) -> Option
             let dv = (p(around[2][1]) - p(around[0][1])) * 0.5;
             let lift = DVec3::from(Vec3::from(t.face_normal)) * LIFT_TEXELS * du.length().min(dv.length()) as f64;
             let centre = t.position().as_dvec3() + lift;
+            // A texel whose lift crosses another surface touches it (a
+            // ring's underside on the floor): its flat footprint would dip
+            // behind that surface where its own surface curves away, and
+            // the centre, lifted, is behind it already. It keeps its centre.
+            if occluders.blocks(t.position().as_dvec3() + lift * 1e-3, centre) {
+                return Vec::new();
+            }
             PATTERN
                 .iter()
                 .enumerate()
@@ -310,7 +317,10 @@ mod tests {
         let brightest = preview
             .lights
             .iter()
-            .max_by(|a, b| (luminance(a.radiance) * a.solid_angle as f64).total_cmp(&(luminance(b.radiance) * b.solid_angle as f64)))
+            .max_by(|a, b| {
+                (luminance(a.radiance) * a.solid_angle as f64)
+                    .total_cmp(&(luminance(b.radiance) * b.solid_angle as f64))
+            })
             .unwrap();
         let off = Vec3::from(brightest.direction).angle_between(sun).to_degrees();
         assert!(off < 0.05, "the sun's light points {off}° off the sun");
