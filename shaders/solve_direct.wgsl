@@ -114,9 +114,10 @@ fn seen_from_behind(stored: f32) -> bool {
 // light in front of the receiver's surface point, or at it: a surface the
 // receiver nearly touches or touches, seen from behind (the floor under a
 // ball resting on it, lit from below). It is never the receiver itself (a
-// light behind the receiver's own face is blocked by it anyway), so it needs no plane
-// and only a rounding tolerance; but the test point, lifted a shadow-map
-// texel off the surface, may have passed it. The stored surface is carried
+// light behind the receiver's own face is blocked by it anyway), so it is
+// not carried along the receiver's plane and needs only a rounding
+// tolerance (whose sign its slope sets); but the test point, lifted a
+// shadow-map texel off the surface, may have passed it. The stored surface is carried
 // to the receiver's own map position along its slope (from its smoother
 // side): a floor seen at a grazing angle changes depth across a texel by
 // far more than the millimetre under the ball.

@@ -91,18 +91,20 @@ fn hard_shadow_edge_is_box_filtered(sun_parts: usize) {
     let mut lights = common::lights(&sun, LightMode::Budget { count: 32 });
     assert_eq!(lights.lights.len(), 1, "a uniform disc is one light");
     let whole = lights.lights[0];
-    // Equal parts of the disc, placed by a sunflower spiral.
-    lights.lights = (0..sun_parts)
-        .map(|k| {
-            let theta = 0.5f32.to_radians() * ((k as f32 + 0.5) / sun_parts as f32).sqrt();
-            let phi = k as f32 * 2.399_963;
-            Light {
-                direction: [theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()],
-                solid_angle: whole.solid_angle / sun_parts as f32,
-                ..whole
-            }
-        })
-        .collect();
+    // Equal parts of the disc, placed by a sunflower spiral (one part is the whole light, as extracted).
+    if sun_parts > 1 {
+        lights.lights = (0..sun_parts)
+            .map(|k| {
+                let theta = 0.5f32.to_radians() * ((k as f32 + 0.5) / sun_parts as f32).sqrt();
+                let phi = k as f32 * 2.399_963;
+                Light {
+                    direction: [theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()],
+                    solid_angle: whole.solid_angle / sun_parts as f32,
+                    ..whole
+                }
+            })
+            .collect();
+    }
     let local = |p: Vec3| turn.inverse() * p;
     let lit = |p: Vec3| local(p).xz().abs().max_element() > side / 2.0;
 
