@@ -18,6 +18,8 @@
 
 #[path = "table4/ceiling.rs"]
 mod ceiling;
+#[path = "table4/vertex.rs"]
+mod vertex;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -52,6 +54,8 @@ enum Section {
     Scaling,
     /// The bounce pass as texels and triangles double.
     Bounce,
+    /// The direct light at the vertices (the paper's per-vertex comparison) against the texels.
+    Vertex,
 }
 
 #[derive(Parser)]
@@ -69,7 +73,7 @@ struct Args {
     #[arg(long, value_delimiter = ',', default_values = ["cube", "budget"])]
     modes: Vec<Mode>,
     /// Which parts to run.
-    #[arg(long, value_delimiter = ',', default_values = ["grid", "ceiling", "scaling", "bounce"])]
+    #[arg(long, value_delimiter = ',', default_values = ["grid", "ceiling", "scaling", "bounce", "vertex"])]
     only: Vec<Section>,
     /// Equirectangular environment map.
     #[arg(long)]
@@ -89,6 +93,12 @@ struct Args {
     /// Grid bakes without the supersample fix-up (its cost is the difference).
     #[arg(long)]
     no_supersample: bool,
+    /// Budget lights of the per-vertex comparison (at each of `--sizes`).
+    #[arg(long, default_value_t = 384)]
+    vertex_lights: u32,
+    /// Shadow-map size of the grid bakes (`bake --shadow-map-size`; default: automatic).
+    #[arg(long)]
+    shadow_map_size: Option<u32>,
     /// Shooter patches of the grid bakes' bounce pass (`bake --patches`).
     #[arg(long, default_value_t = bake::solve::BounceOptions::default().patches)]
     patches: u32,
@@ -285,6 +295,9 @@ fn main() -> Result<()> {
     if args.only.contains(&Section::Bounce) {
         bounce_scaling(&gpu)?;
     }
+    if args.only.contains(&Section::Vertex) {
+        vertex_table(&gpu, &args, &statues, &map)?;
+    }
     println!("\nbenchmark wall time: {:.0} s", started.elapsed().as_secs_f64());
     Ok(())
 }
@@ -299,6 +312,7 @@ fn grid(gpu: &Gpu, args: &Args, statues: &Statues, map: &Arc<EnvironmentMap>) ->
         let mut options = BakeOptions::default();
         options.unwrap.max_atlas_size = size;
         options.solve.supersample = !args.no_supersample;
+        options.solve.shadow_map_size = args.shadow_map_size;
         options.solve.bounce.patches = args.patches;
         // The reference at texels of this atlas size (every cell of the size bakes the same texels).
         let probes = if args.reference_texels > 0 {
@@ -520,6 +534,54 @@ fn grid(gpu: &Gpu, args: &Args, statues: &Statues, map: &Arc<EnvironmentMap>) ->
 
 /// Filter widths (depth loads per pair) the bare gather is also timed with.
 const TAPS: [u32; 3] = [9, 25, 73];
+
+fn vertex_table(gpu: &Gpu, args: &Args, statues: &Statues, map: &Arc<EnvironmentMap>) -> Result<()> {
+    println!("\n## Per-vertex baseline: the direct light at the vertices\n");
+    println!(
+        "The paper's Fig. 14 compares its texels with incremental radiosity at the vertices. Here the same direct \
+         pass and shadow maps run at the {} lights' texels (with the supersample fix-up, as a bake) and at the \
+         meshes' vertices, interpolated across each triangle (benches/table4/vertex.rs). Errors: relative RMSE \
+         against the CPU reference of the direct light alone (no reflections) at {} texel centres × {} paths. \
+         The bounce pass has no per-vertex form (it shoots between atlas patches and texels), so this compares \
+         the direct light only.\n",
+        args.vertex_lights, args.reference_texels, args.reference_samples
+    );
+    println!("| atlas | texels | per texel (s) | error | vertices | per vertex (s) | error | reference noise |");
+    println!("|---|---|---|---|---|---|---|---|");
+    let lights = LightSet::extract(map, LightMode::Budget { count: args.vertex_lights }, 0.0, 1.0);
+    let scene = statues.scene()?;
+    let setup = vertex::Setup {
+        gpu,
+        environment: map,
+        lights: &lights,
+        probes: args.reference_texels.max(1),
+        samples: args.reference_samples,
+    };
+    for &size in &args.sizes {
+        let mut options = BakeOptions::default();
+        options.unwrap.max_atlas_size = size;
+        options.solve.shadow_map_size = args.shadow_map_size;
+        let c = vertex::compare(&setup, &scene, &options)?;
+        eprintln!(
+            "vertex {size}²: texels {:.2} s {:.2} %, vertices {:.2} s {:.2} %",
+            c.texel_seconds,
+            100.0 * c.texel_error,
+            c.vertex_seconds,
+            100.0 * c.vertex_error
+        );
+        println!(
+            "| {size}² | {} | {:.2} | {:.2} % | {} | {:.2} | {:.2} % | {:.2} % |",
+            c.texels,
+            c.texel_seconds,
+            100.0 * c.texel_error,
+            c.vertices,
+            c.vertex_seconds,
+            100.0 * c.vertex_error,
+            100.0 * c.noise
+        );
+    }
+    Ok(())
+}
 
 fn ceiling_table(gpu: &Gpu, args: &Args, statues: &Statues, map: &EnvironmentMap) -> Result<()> {
     println!("\n## Direct pass against the bare-kernel ceiling\n");

@@ -231,6 +231,17 @@ pub struct ReferenceReport {
 /// Estimates `check.texels` texels of `texels` with the CPU reference:
 /// the probes the bounce pass reads back, and the reference's relative noise.
 pub fn reference_probes(scene: &Scene, texels: &TexelSet, check: &ReferenceCheck) -> (Probes, f64) {
+    reference_probes_within(scene, texels, check, ReferenceOptions::default().max_bounces)
+}
+
+/// As [`reference_probes`], with light that reached the probes by more than
+/// `max_bounces` reflections left out (0: the direct light alone).
+pub fn reference_probes_within(
+    scene: &Scene,
+    texels: &TexelSet,
+    check: &ReferenceCheck,
+    max_bounces: u32,
+) -> (Probes, f64) {
     let candidates: Vec<u32> =
         (0..texels.texels.len() as u32).filter(|&i| texels.texels[i as usize].area > 0.0).collect();
     let n = check.texels.min(candidates.len());
@@ -246,6 +257,7 @@ pub fn reference_probes(scene: &Scene, texels: &TexelSet, check: &ReferenceCheck
         samples: check.samples,
         env_rotation_degrees: check.env_rotation_degrees,
         env_intensity: check.env_intensity,
+        max_bounces,
         ..ReferenceOptions::default()
     };
     let estimates = Reference::new(scene, check.environment.as_deref(), &options).estimate(&points);

@@ -138,7 +138,7 @@ pub fn run(
 
 /// The direct pass with the supersample fix-up when it is asked for, and how
 /// many texels it supersampled.
-fn direct_light(
+pub fn direct_light(
     gpu: &Gpu,
     scene: &Scene,
     texels: &TexelSet,
