@@ -188,16 +188,20 @@ impl Statues {
     }
 }
 
-/// Unwrap and texelize as `bake_scene` does (both are deterministic), for the
-/// reference and for timing the direct pass alone.
-fn texelize(gpu: &Gpu, scene: &Scene, options: &BakeOptions) -> Result<TexelSet> {
+/// Unwrap as `bake_scene` does (deterministic).
+fn unwrap(scene: &Scene, options: &BakeOptions) -> Result<bake::unwrap::Atlas> {
     let meshes: Vec<bake::unwrap::MeshInput> = scene
         .primitives
         .iter()
         .map(|p| bake::unwrap::MeshInput { positions: &p.positions, indices: &p.indices })
         .collect();
-    let atlas = bake::unwrap::run(&meshes, &options.unwrap)?;
-    bake::texelize::run(gpu, scene, &atlas)
+    bake::unwrap::run(&meshes, &options.unwrap)
+}
+
+/// Unwrap and texelize as `bake_scene` does (both are deterministic), for the
+/// reference and for timing the direct pass alone.
+fn texelize(gpu: &Gpu, scene: &Scene, options: &BakeOptions) -> Result<TexelSet> {
+    bake::texelize::run(gpu, scene, &unwrap(scene, options)?)
 }
 
 /// CPU seconds (user + system) this process has used, all threads (lavapipe's workers included), from
@@ -641,12 +645,7 @@ fn ceiling_table(gpu: &Gpu, args: &Args, statues: &Statues, map: &EnvironmentMap
 
 /// The texel density the unwrap picks (the direct pass sizes its shadow maps by it).
 fn texels_per_unit(scene: &Scene, options: &BakeOptions) -> Result<f32> {
-    let meshes: Vec<bake::unwrap::MeshInput> = scene
-        .primitives
-        .iter()
-        .map(|p| bake::unwrap::MeshInput { positions: &p.positions, indices: &p.indices })
-        .collect();
-    Ok(bake::unwrap::run(&meshes, &options.unwrap)?.texels_per_unit)
+    Ok(unwrap(scene, options)?.texels_per_unit)
 }
 
 /// One direct pass (best of two where one takes under 20 s): (texels, lights, triangles, shadow map,

@@ -44,12 +44,7 @@ pub struct Setup<'a> {
 /// Bakes the direct light of `scene` at the texels of an atlas of `options`
 /// and at its vertices, and measures both against the reference.
 pub fn compare(setup: &Setup, scene: &Scene, options: &BakeOptions) -> Result<Comparison> {
-    let meshes: Vec<bake::unwrap::MeshInput> = scene
-        .primitives
-        .iter()
-        .map(|p| bake::unwrap::MeshInput { positions: &p.positions, indices: &p.indices })
-        .collect();
-    let atlas = bake::unwrap::run(&meshes, &options.unwrap)?;
+    let atlas = crate::unwrap(scene, options)?;
     let texels = bake::texelize::run(setup.gpu, scene, &atlas)?;
     let gpu = setup.gpu;
 
