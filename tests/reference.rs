@@ -187,6 +187,31 @@ fn closed_room_converges_to_the_geometric_series() {
     }
 }
 
+#[test]
+fn a_bounce_cap_cuts_the_closed_rooms_series_after_as_many_reflections() {
+    // Every path from a wall of a closed emitting room meets a wall at once:
+    // with light that took more than k reflections dropped, L = Le·Σ_{i≤k} ρ^i.
+    // With k = 0 (the direct light alone, as the per-vertex bench compares)
+    // and 1 no path is ended at random, so the answer is exact.
+    let (albedo, le) = (0.5f64, 0.6f32);
+    let scene = closed_room(albedo as f32, le);
+    let mut points: Vec<ReferencePoint> = surface_points(&scene, 3, 5).iter().map(|p| p.point).collect();
+    points.push(point([0.0; 3], [0.0, 1.0, 0.0]));
+    for max_bounces in [0u32, 1, 3] {
+        let reference = Reference::new(&scene, None, &ReferenceOptions { max_bounces, ..options(4096) });
+        let expected = le as f64 * (0..=max_bounces).map(|i| albedo.powi(i as i32)).sum::<f64>();
+        for e in reference.estimate(&points) {
+            if max_bounces <= 1 {
+                for v in e.lightmap {
+                    assert!((v - expected).abs() <= 1e-9 * expected, "{max_bounces} bounces: {v}, expected {expected}");
+                }
+            } else {
+                check(&format!("room, {max_bounces} bounces"), &e, [expected; 3], 4.0, 0.02);
+            }
+        }
+    }
+}
+
 /// View factor from a point on the axis of an a×b rectangle (half-sides
 /// `a`, `b`) at distance `c`, facing it.
 fn view_factor(a: f64, b: f64, c: f64) -> f64 {
