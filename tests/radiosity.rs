@@ -84,6 +84,24 @@ fn closed_room_with_uniform_emission_reaches_le_over_one_minus_rho() {
 }
 
 #[test]
+fn a_converged_closed_room_counts_the_light_it_had_left_to_shoot() {
+    // Converged at the default tolerance, up to 1 % of the light is still
+    // unshot; it would have landed where the shots' light did, and must be
+    // in the answer: mean L_lm = Le/(1 − ρ) to well within that 1 %.
+    let rho = 0.8f32;
+    let baked = bake_emitters(&room([(rho, 1.0); 6]), 96, |_| {});
+    let bounce = baked.solution.bounce.as_ref().expect("the bounce pass ran");
+    assert_eq!(bounce.stopped_by, "converged");
+    let mean = area_mean(&baked, &[0, 1, 2, 3, 4, 5], |i| baked.solution.lightmap[i][0]);
+    let expected = 1.0 / (1.0 - rho as f64);
+    eprintln!(
+        "{} shots, unshot {:.4}, ambient {:.4}: mean {mean:.5}, expected {expected:.5}",
+        bounce.shots, bounce.unshot_fraction, bounce.ambient[0]
+    );
+    assert!((mean / expected - 1.0).abs() < 0.005, "mean {mean} vs {expected}");
+}
+
+#[test]
 fn closed_room_with_one_emitting_wall_keeps_the_mean() {
     // Σ A L = Σ A Le + ρ Σ A L in a closed room: mean L = mean Le / (1 − ρ).
     for (rho, tolerance) in [(0.5f32, 0.02f64), (0.95, 0.05)] {

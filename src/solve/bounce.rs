@@ -20,9 +20,11 @@
 //! too dark). Scenes that catch little of what they reflect skip it
 //! (`NORMALIZE_FROM`).
 //!
-//! A run stopped by a budget still answers honestly: the light not yet shot
-//! is spread as an ambient term (Cohen et al.'s, scaled by the measured share
-//! of shot light the scene catches), and the report says how much it was.
+//! The light not yet shot is spread as an ambient term (Cohen et al.'s,
+//! scaled by the measured share of shot light the scene catches), and the
+//! report says how much it was: where the shots' light landed when the pass
+//! converged, by the scene's coverage of each texel when a budget stopped it
+//! (a run stopped early still answers honestly).
 
 use std::time::Instant;
 
@@ -147,15 +149,16 @@ pub struct BounceStats {
     /// Unshot power over the power put in when it stopped.
     pub unshot_fraction: f64,
     /// Closure the ambient term used: the share of the unshot power that
-    /// would land on the scene (from the direct pass's coverage, or
-    /// `shot_closure` without one).
+    /// would land on the scene (`shot_closure` when the pass converged or
+    /// had no direct pass, else from the direct pass's coverage).
     pub closure: f64,
     /// Power that landed on the scene over the power shot (luminance, summed
     /// on the GPU over every batch; 1 when nothing was shot). Not capped: above
     /// 1 the form factors gave out more than was shot.
     pub shot_closure: f64,
-    /// Mean ambient term added for the light not yet shot when a budget
-    /// stopped the pass (zero when it converged), L_lm RGB.
+    /// Mean ambient term added for the light not yet shot, L_lm RGB: spread
+    /// where the shots' light landed when the pass converged, by coverage
+    /// when a budget stopped it.
     pub ambient: [f32; 3],
     /// Whether each patch's form factors were normalized to its hemicube's
     /// covered share (skipped where the scene catches little of its light).
@@ -441,35 +444,34 @@ pub fn run(
     let values: Vec<[f32; 4]> = read_buffer(gpu, &resources.lightmap, texels.texels.len())?;
     let remaining: Vec<[f32; 4]> = read_buffer(gpu, &resources.unshot, texels.texels.len())?;
     gpu.check("solve (bounce)")?;
-    // Where the light not yet shot would go: the scene-covered share of each
-    // texel's hemisphere (from the direct pass), weighted by its unshot power;
-    // without a direct pass, the share measured over the shots taken.
+    // How much of the light not yet shot would land. Converged, the share the
+    // shots' light landed (it goes where theirs went, below): the coverage
+    // counts surfaces seen from behind, which absorb it, and would pile it
+    // onto the few texels a shot reached. Stopped by a budget, the
+    // scene-covered share of each texel's hemisphere (from the direct pass),
+    // weighted by its unshot power; without a direct pass, the measured one.
     let closure = match coverage {
-        Some(coverage) => covered_share(texels, &remaining, coverage),
-        None => measured_closure(received_total, shot_total),
+        Some(coverage) if stopped_by != "converged" => covered_share(texels, &remaining, coverage),
+        _ => measured_closure(received_total, shot_total),
     };
-    // Converged, what is left is below the tolerance: reported, not spread.
-    // Stopped by a budget, it is spread as the ambient term, over the texels
-    // in proportion to how much of their hemisphere the scene covers (a
-    // texel under open sky gets none of it).
-    let ambient = if stopped_by == "converged" {
-        [0.0; 3]
+    let ambient = ambient_term(last.unshot, closure, mean_albedo, total_area).map(|a| a as f32);
+    let weights = if stopped_by == "converged" {
+        // Converged, the little left would land where the shots' light
+        // landed: later bounces spread as earlier ones did. A texel no
+        // reflected light reached (inside a closed room the light never
+        // entered) gets none.
+        let bounced: Vec<f32> = values.iter().zip(lightmap.iter()).map(|(v, d)| bounced_luminance(*v, *d)).collect();
+        mean_one_weights(texels, &bounced)
     } else {
-        ambient_term(last.unshot, closure, mean_albedo, total_area).map(|a| a as f32)
+        // Stopped by a budget, early shots say little about where the rest
+        // goes: it is spread in proportion to how much of each texel's
+        // hemisphere the scene covers (a texel under open sky gets none).
+        match coverage {
+            Some(c) => mean_one_weights(texels, c),
+            None => vec![1.0; texels.texels.len()],
+        }
     };
-    // Weights with an area-weighted mean of 1, so the power spread is the
-    // ambient term's, whatever the coverage's distribution.
-    let mean_coverage = coverage.map(|c| {
-        let covered: f64 = texels.texels.iter().zip(c).map(|(t, c)| *c as f64 * t.area as f64).sum();
-        covered / total_area.max(1e-30)
-    });
-    let weight = |i: usize| match (coverage, mean_coverage) {
-        (Some(c), Some(mean)) if mean > 0.0 => (c[i] as f64 / mean) as f32,
-        (Some(_), _) => 0.0,
-        _ => 1.0,
-    };
-    for (i, (out, v)) in lightmap.iter_mut().zip(values).enumerate() {
-        let w = weight(i);
+    for ((out, v), w) in lightmap.iter_mut().zip(values).zip(weights) {
         *out = [0, 1, 2].map(|c| v[c] + ambient[c] * w);
     }
     let unshot_fraction = trace.last().map_or(0.0, |t| t.unshot_fraction);
@@ -486,6 +488,22 @@ pub fn run(
         normalized,
         trace,
     })
+}
+
+/// The luminance a texel received from other surfaces: its lightmap value
+/// after the shots (`after`) less its direct light (`direct`).
+fn bounced_luminance(after: [f32; 4], direct: [f32; 3]) -> f32 {
+    let d = [0, 1, 2].map(|c| (after[c] - direct[c]).max(0.0) as f64);
+    luminance(d) as f32
+}
+
+/// `values` scaled to an area-weighted mean of 1 over the texels, so that
+/// spreading the ambient term by them spreads its power whatever their
+/// distribution; all zero where the values are.
+fn mean_one_weights(texels: &TexelSet, values: &[f32]) -> Vec<f32> {
+    let sum: f64 = texels.texels.iter().zip(values).map(|(t, v)| *v as f64 * t.area as f64).sum();
+    let mean = sum / texels.total_area().max(1e-30);
+    values.iter().map(|v| if mean > 0.0 { (*v as f64 / mean) as f32 } else { 0.0 }).collect()
 }
 
 /// `--reference`: the probes' error now, from a read-back of their values
