@@ -610,9 +610,10 @@ fn ceiling_table(gpu: &Gpu, args: &Args, statues: &Statues, map: &EnvironmentMap
         let mut options = BakeOptions::default();
         options.unwrap.max_atlas_size = size;
         let scene = statues.scene()?;
-        let texels = texelize(gpu, &scene, &options)?;
+        let atlas = unwrap(&scene, &options)?;
+        let texels = bake::texelize::run(gpu, &scene, &atlas)?;
+        let tpu = atlas.texels_per_unit;
         let (wall, cpu) = (Instant::now(), cpu_seconds());
-        let tpu = texels_per_unit(&scene, &options)?;
         let lights = LightSet::extract(map, light_mode(Mode::Cube, count)?, 0.0, 1.0);
         let direct = bake::solve::direct::run(gpu, &scene, &texels, &[], &lights, tpu, &options.solve, &mut |_, _| {})?;
         let stats = direct.stats;
@@ -643,11 +644,6 @@ fn ceiling_table(gpu: &Gpu, args: &Args, statues: &Statues, map: &EnvironmentMap
     Ok(())
 }
 
-/// The texel density the unwrap picks (the direct pass sizes its shadow maps by it).
-fn texels_per_unit(scene: &Scene, options: &BakeOptions) -> Result<f32> {
-    Ok(unwrap(scene, options)?.texels_per_unit)
-}
-
 /// One direct pass (best of two where one takes under 20 s): (texels, lights, triangles, shadow map,
 /// seconds, cores).
 fn direct_once(
@@ -662,12 +658,7 @@ fn direct_once(
     options.unwrap.max_atlas_size = size;
     options.solve.shadow_map_size = shadow_map;
     let scene = statues.scene()?;
-    let meshes: Vec<bake::unwrap::MeshInput> = scene
-        .primitives
-        .iter()
-        .map(|p| bake::unwrap::MeshInput { positions: &p.positions, indices: &p.indices })
-        .collect();
-    let atlas = bake::unwrap::run(&meshes, &options.unwrap)?;
+    let atlas = unwrap(&scene, &options)?;
     let texels = bake::texelize::run(gpu, &scene, &atlas)?;
     let lights = LightSet::extract(map, mode, 0.0, 1.0);
     let (mut best, mut cores, mut map_size) = (f64::INFINITY, 0.0, 0);
@@ -714,12 +705,7 @@ fn bounce_scaling(gpu: &Gpu) -> Result<()> {
         let scene = statues.scene()?;
         let mut options = BakeOptions::default();
         options.unwrap.max_atlas_size = size;
-        let meshes: Vec<bake::unwrap::MeshInput> = scene
-            .primitives
-            .iter()
-            .map(|p| bake::unwrap::MeshInput { positions: &p.positions, indices: &p.indices })
-            .collect();
-        let atlas = bake::unwrap::run(&meshes, &options.unwrap)?;
+        let atlas = unwrap(&scene, &options)?;
         let texels = bake::texelize::run(gpu, &scene, &atlas)?;
         let tpu = atlas.texels_per_unit;
         let patches = bake::solve::patches::build(&texels, options.solve.bounce.patches, 1.0 / tpu);

@@ -219,8 +219,9 @@ impl MeshData {
     }
 }
 
-/// Area-weighted vertex normals of an indexed triangle mesh.
-fn vertex_normals(positions: &[[f32; 3]], indices: &[u32]) -> Vec<[f32; 3]> {
+/// Area-weighted vertex normals of an indexed triangle mesh (counter-clockwise
+/// triangles face the way their normals point).
+pub fn vertex_normals(positions: &[[f32; 3]], indices: &[u32]) -> Vec<[f32; 3]> {
     let mut normals = vec![Vec3::ZERO; positions.len()];
     for tri in indices.chunks_exact(3) {
         let [a, b, c] = [0, 1, 2].map(|k| Vec3::from(positions[tri[k] as usize]));

@@ -117,17 +117,14 @@ fn vertex_points(scene: &Scene) -> (TexelSet, Vec<usize>) {
     for (p, primitive) in scene.primitives.iter().enumerate() {
         first.push(points.len());
         let material = scene.material(primitive);
-        let mut normals = vec![Vec3::ZERO; primitive.positions.len()];
-        for tri in primitive.indices.chunks_exact(3) {
-            let [a, b, c] = [0, 1, 2].map(|k| Vec3::from(primitive.positions[tri[k] as usize]));
-            // Twice the area along the face normal: an area-weighted sum.
-            let n = (b - a).cross(c - a) * if primitive.mirrored { -1.0 } else { 1.0 };
-            for &v in tri {
-                normals[v as usize] += n;
-            }
-        }
+        let normals = primitive.normals.clone().unwrap_or_else(|| {
+            // A mirroring transform turns the winding, and so the normals, around.
+            let side = if primitive.mirrored { -1.0 } else { 1.0 };
+            let area_weighted = bake::fixtures::vertex_normals(&primitive.positions, &primitive.indices);
+            area_weighted.into_iter().map(|n| n.map(|c| side * c)).collect()
+        });
         for (v, position) in primitive.positions.iter().enumerate() {
-            let normal = primitive.normals.as_ref().map_or(normals[v], |n| Vec3::from(n[v])).normalize_or_zero();
+            let normal = Vec3::from(normals[v]).normalize_or_zero();
             let index = points.len() as u32;
             points.push(Texel {
                 position: *position,

@@ -450,12 +450,13 @@ pub fn run(
     // onto the few texels a shot reached. Stopped by a budget, the
     // scene-covered share of each texel's hemisphere (from the direct pass),
     // weighted by its unshot power; without a direct pass, the measured one.
+    let converged = stopped_by == "converged";
     let closure = match coverage {
-        Some(coverage) if stopped_by != "converged" => covered_share(texels, &remaining, coverage),
+        Some(coverage) if !converged => covered_share(texels, &remaining, coverage),
         _ => measured_closure(received_total, shot_total),
     };
     let ambient = ambient_term(last.unshot, closure, mean_albedo, total_area).map(|a| a as f32);
-    let weights = if stopped_by == "converged" {
+    let weights = if converged {
         // Converged, the little left would land where the shots' light
         // landed: later bounces spread as earlier ones did. A texel no
         // reflected light reached (inside a closed room the light never
