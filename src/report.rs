@@ -250,7 +250,7 @@ pub fn reference_probes_within(
         .iter()
         .map(|&i| {
             let t = &texels.texels[i as usize];
-            ReferencePoint { position: t.position, normal: t.normal }
+            ReferencePoint { position: t.position, normal: t.normal, face_normal: Some(t.face_normal) }
         })
         .collect();
     let options = ReferenceOptions {

@@ -24,7 +24,7 @@ fn options(samples: u32) -> ReferenceOptions {
 }
 
 fn point(position: [f32; 3], normal: [f32; 3]) -> ReferencePoint {
-    ReferencePoint { position, normal }
+    ReferencePoint { position, normal, face_normal: None }
 }
 
 /// Asserts every channel of `got` is within `sigmas` standard errors and
@@ -157,6 +157,28 @@ fn black_sphere_above_hides_its_solid_angle() {
     let facets = sky as f64 * (r * r - inner * inner) / (d * d);
     eprintln!("sphere: faceting allows {facets:.2e}; {} triangles", reference.triangle_count());
     check("sphere above", &e, [expected; 3], 4.0 + facets / e.std_error[0], 0.01);
+}
+
+#[test]
+fn a_shading_normal_leaning_past_its_plane_gathers_nothing_from_behind_it() {
+    // A wide white floor whose smooth normals lean 30° off its plane, under a
+    // uniform sky: the point on it sees the sky over the part of its
+    // cosine lobe above the floor, (1 + cos 30°)/2 of it, and nothing from
+    // below, where the floor itself is. A ray sent there must not meet the
+    // floor's own front and count it as a lit surface (that gave 0.99).
+    let tilt = 30f32.to_radians();
+    let lean = [0.0, tilt.cos(), tilt.sin()];
+    let mut floor = MeshData::plane(40.0, 40.0, 1);
+    floor.normals = vec![lean; floor.positions.len()];
+    let mut builder = SceneBuilder::new();
+    builder.object("floor", &floor, [0.8, 0.8, 0.8, 1.0], [0.0; 3], Placement::default());
+    let scene = scene(&builder);
+    let map = EnvironmentMap::constant([1.0; 3]);
+    let reference = Reference::new(&scene, Some(&map), &options(65536));
+    let on_floor = ReferencePoint { position: [0.3, 0.0, -0.2], normal: lean, face_normal: Some([0.0, 1.0, 0.0]) };
+    let e = reference.estimate(&[on_floor])[0];
+    let expected = (1.0 + (tilt as f64).cos()) / 2.0;
+    check("leaning normal on a floor", &e, [expected; 3], 4.0, 0.01);
 }
 
 fn closed_room(albedo: f32, emission: f32) -> Scene {

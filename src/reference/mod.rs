@@ -81,10 +81,10 @@
 //! leaks between adjacent triangles). Secondary rays leave the hit triangle
 //! (which they skip) from a point lifted 1e-9 × `scale` along the front
 //! normal, and rays from a query point leave from 1e-6 × max(`scale`, |p|∞)
-//! along its normal — about ten f32 ulps, since query points typically come
-//! from f32 computations — where `scale` is the largest absolute vertex
-//! coordinate. Both are relative, so a scene at 1 mm and at 10 km gives the
-//! same answer.
+//! along its face normal (its normal when it has none) — about ten f32 ulps,
+//! since query points typically come from f32 computations — where `scale`
+//! is the largest absolute vertex coordinate. Both are relative, so a scene
+//! at 1 mm and at 10 km gives the same answer.
 //!
 //! # Determinism
 //! Each point's samples are split into fixed chunks of 128; chunk c of
@@ -147,6 +147,14 @@ pub struct ReferencePoint {
     /// hemisphere it points into is gathered. Need not be exactly unit (it is
     /// normalised); a zero or non-finite normal gives a NaN estimate.
     pub normal: [f32; 3],
+    /// Geometric normal of the surface the point lies on, on `normal`'s side
+    /// (a lightmap texel's triangle); `None` for a point in space. Light from
+    /// behind that plane is inside the surface and never reaches the point,
+    /// also where a smooth shading `normal` leans past it: a ray sent there
+    /// would hit the point's own triangle from the front and count it as a
+    /// lit surface (measured on a lumpy statue under a uniform sky: over
+    /// half of its interreflected light came from such self-hits).
+    pub face_normal: Option<[f32; 3]>,
 }
 
 /// A lightmap value with its uncertainty.
@@ -476,12 +484,18 @@ impl Reference {
         if !p.is_finite() || n == DVec3::ZERO || !n.is_finite() {
             return Stats::invalid();
         }
+        // A usable face normal on the receiving side, else none.
+        let face = point
+            .face_normal
+            .map(|f| DVec3::from(f.map(|v| v as f64)).normalize_or_zero())
+            .filter(|f| f.is_finite() && f.dot(n) > 0.0);
         let offset = 1e-6 * self.scale.max(p.abs().max_element());
-        let origin = p + n * offset;
+        // Lifted off its own plane, so that no ray above it meets it.
+        let origin = p + face.unwrap_or(n) * offset;
         let mut rng = Rng::new(&[self.seed, index, chunk]);
         let mut stats = Stats::default();
         for _ in 0..count {
-            stats.push(self.sample_path(origin, n, &mut rng));
+            stats.push(self.sample_path(origin, n, face, &mut rng));
         }
         stats
     }
@@ -590,6 +604,7 @@ pub fn surface_points(scene: &Scene, count: usize, seed: u64) -> Vec<SurfacePoin
                 point: ReferencePoint {
                     position: position.to_array().map(|c| c as f32),
                     normal: normal.to_array().map(|c| c as f32),
+                    face_normal: Some(normal.to_array().map(|c| c as f32)),
                 },
             }
         })

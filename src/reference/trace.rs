@@ -23,6 +23,11 @@ use super::sampling::{Rng, cosine_hemisphere};
 /// Surface interactions after which Russian roulette starts.
 const ROULETTE_AFTER: u32 = 3;
 
+/// Whether `direction` points behind the plane of unit normal `face`.
+fn behind(face: Option<DVec3>, direction: DVec3) -> bool {
+    face.is_some_and(|f| direction.dot(f) <= 0.0)
+}
+
 /// Balance-heuristic weight of a technique with density `a` against one with `b`.
 fn balance(a: f64, b: f64) -> f64 {
     if a + b > 0.0 { a / (a + b) } else { 0.0 }
@@ -45,8 +50,10 @@ impl Reference {
     }
 
     /// One path's estimate of L_lm at `position` (already offset off the
-    /// surface) for the unit receiving `normal`.
-    pub(super) fn sample_path(&self, position: DVec3, normal: DVec3, rng: &mut Rng) -> DVec3 {
+    /// surface) for the unit receiving `normal`, on a surface whose plane has
+    /// the unit normal `face` (when it lies on one): directions behind that
+    /// plane bring nothing.
+    pub(super) fn sample_path(&self, position: DVec3, normal: DVec3, face: Option<DVec3>, rng: &mut Rng) -> DVec3 {
         let env = self.env.as_ref();
         let nee = env.is_some_and(|e| e.can_sample());
         let mut result = DVec3::ZERO;
@@ -54,13 +61,16 @@ impl Reference {
         let mut origin = position;
         let mut normal = normal;
         let mut skip: Option<u32> = None;
+        // Only the query point's shading normal can lean past its plane; every
+        // later vertex uses its triangle's own normal.
+        let mut face = face;
         for bounce in 0..=self.max_bounces {
             // Next-event estimation towards the environment.
             if nee {
                 let env = env.unwrap();
                 let s = env.sample([rng.next_f64(), rng.next_f64(), rng.next_f64(), rng.next_f64()]);
                 let cos = s.direction.dot(normal);
-                if cos > 0.0 && s.pdf > 0.0 && !self.occluded(origin, s.direction, skip) {
+                if cos > 0.0 && s.pdf > 0.0 && !behind(face, s.direction) && !self.occluded(origin, s.direction, skip) {
                     let pdf_cos = cos * FRAC_1_PI;
                     // (cos/π)/pdf × weight
                     let weight = pdf_cos / s.pdf * balance(s.pdf, pdf_cos);
@@ -69,7 +79,7 @@ impl Reference {
             }
             // Continue along a cosine-distributed direction.
             let (direction, cos) = cosine_hemisphere(normal, rng.next_f64(), rng.next_f64());
-            if cos <= 0.0 {
+            if cos <= 0.0 || behind(face, direction) {
                 break;
             }
             let Some(hit) = self.closest(origin, direction, skip) else {
@@ -110,6 +120,7 @@ impl Reference {
             origin = tri.point(hit.u, hit.v) + n * self.surface_offset;
             normal = n;
             skip = Some(hit.triangle);
+            face = None;
         }
         result
     }

@@ -60,7 +60,7 @@ pub fn reference_points(baked: &Baked, indices: &[usize]) -> Vec<bake::reference
         .iter()
         .map(|&i| {
             let t = &baked.texels.texels[i];
-            bake::reference::ReferencePoint { position: t.position, normal: t.normal }
+            bake::reference::ReferencePoint { position: t.position, normal: t.normal, face_normal: Some(t.face_normal) }
         })
         .collect()
 }
