@@ -102,6 +102,9 @@ struct Args {
     /// Shooter patches of the grid bakes' bounce pass (`bake --patches`).
     #[arg(long, default_value_t = bake::solve::BounceOptions::default().patches)]
     patches: u32,
+    /// Shooters per GPU batch of the grid bakes' bounce pass (at most 64).
+    #[arg(long, default_value_t = bake::solve::BounceOptions::default().shooters_per_batch)]
+    shooters_per_batch: u32,
     /// Passed by `cargo bench`; ignored.
     #[arg(long, hide = true)]
     bench: bool,
@@ -318,6 +321,7 @@ fn grid(gpu: &Gpu, args: &Args, statues: &Statues, map: &Arc<EnvironmentMap>) ->
         options.solve.supersample = !args.no_supersample;
         options.solve.shadow_map_size = args.shadow_map_size;
         options.solve.bounce.patches = args.patches;
+        options.solve.bounce.shooters_per_batch = args.shooters_per_batch;
         // The reference at texels of this atlas size (every cell of the size bakes the same texels).
         let probes = if args.reference_texels > 0 {
             let scene = statues.scene()?;

@@ -7,9 +7,10 @@
 //! hemicube depth map from each (`solve_hemicube`), and let every texel
 //! gather from the K shooters with the seed's bounded form factor
 //! (`solve_shoot`: the far field for every texel, then the exact near field
-//! for the few texels next to a shooter, which `main` lists). Only a 64-byte
-//! summary and the list's length come back per batch, to decide whether to
-//! stop, record the convergence trace and size the near-field pass.
+//! for the few texels next to a shooter, which `main` lists and
+//! `near_dispatch` sizes that pass for, on the GPU). Only a 64-byte summary
+//! comes back per batch, to decide whether to stop and to record the
+//! convergence trace.
 //!
 //! The first time a patch shoots, its form factors are normalized: the
 //! `measure` and `finish` entry points of `solve_shoot` sum them over every
@@ -38,8 +39,10 @@ use crate::gpu::{self, Gpu, Shader, read_buffer};
 use crate::scene::Scene;
 use crate::texelize::TexelSet;
 
-/// Shooter slots per batch (`MAX_SHOOTERS` in solve_shoot.wgsl).
-pub const MAX_SHOOTERS: u32 = 64;
+/// Shooter slots per batch (`MAX_SHOOTERS` in solve_shoot.wgsl): a near-field
+/// receiver lists the slots it is near as bits of one u32.
+pub const MAX_SHOOTERS: u32 = 32;
+const _: () = assert!(MAX_SHOOTERS <= u32::BITS);
 /// Parts a shooter patch's light is summed by for the near field
 /// (`SUB_CELL_COUNT` in common.wgsl).
 const SUB_CELL_COUNT: usize = 16;
@@ -70,7 +73,7 @@ pub struct BounceOptions {
     pub max_seconds: Option<f64>,
     /// About how many shooter patches to group the texels into.
     pub patches: u32,
-    /// Shooters per GPU batch (at most 64).
+    /// Shooters per GPU batch (at most 32).
     pub shooters_per_batch: u32,
     /// Hemicube face width in texels.
     pub hemicube_size: u32,
@@ -239,6 +242,9 @@ struct Resources {
     partials: wgpu::Buffer,
     /// Receivers in a shooter's near field: a count, then (texel, slots) pairs.
     near_list: wgpu::Buffer,
+    /// The near-field pass's workgroup counts, written on the GPU from the
+    /// list's length (so no batch waits to read it back).
+    near_args: wgpu::Buffer,
     /// Each shooter's unshot light and area centroid by sub-cells of its patch.
     shooter_cells: wgpu::Buffer,
     depth_view: wgpu::TextureView,
@@ -258,6 +264,8 @@ struct Pipelines {
     finish: wgpu::ComputePipeline,
     /// The far field of every receiver, then the near field of those `main` listed.
     shoot: (wgpu::ComputePipeline, wgpu::BindGroup),
+    /// Sizes the near-field pass from the list's length, with its own bind group.
+    near_dispatch: (wgpu::ComputePipeline, wgpu::BindGroup),
     near_field: wgpu::ComputePipeline,
 }
 
@@ -417,21 +425,18 @@ pub fn run(
             }
             pass.set_pipeline(&pipelines.shoot.0);
             pass.dispatch_workgroups(groups_x, groups_y, 1);
+            pass.set_pipeline(&pipelines.near_dispatch.0);
+            pass.set_bind_group(0, &pipelines.near_dispatch.1, &[]);
+            pass.dispatch_workgroups(1, 1, 1);
+        }
+        {
+            // The near field only for the receivers listed (a few per shooter).
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_bind_group(0, &pipelines.shoot.1, &[]);
+            pass.set_pipeline(&pipelines.near_field);
+            pass.dispatch_workgroups_indirect(&resources.near_args, 0);
         }
         gpu.queue.submit([encoder.finish()]);
-        // The near field only for the receivers listed (a few per shooter).
-        let listed = read_buffer::<u32>(gpu, &resources.near_list, 1)?[0];
-        if listed > 0 {
-            let (near_x, near_y) = gpu.dispatch_size(listed, 64);
-            let mut encoder = gpu.device.create_command_encoder(&Default::default());
-            {
-                let mut pass = encoder.begin_compute_pass(&Default::default());
-                pass.set_bind_group(0, &pipelines.shoot.1, &[]);
-                pass.set_pipeline(&pipelines.near_field);
-                pass.dispatch_workgroups(near_x, near_y, 1);
-            }
-            gpu.queue.submit([encoder.finish()]);
-        }
         shots += stats.shooters as u64;
         shot_total += stats.shot[3] as f64;
         batches += 1;
@@ -595,6 +600,12 @@ fn resources(
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         }),
+        near_args: gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("solve_shoot near-field dispatch"),
+            size: 12,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
+            mapped_at_creation: false,
+        }),
         shooter_cells: gpu.storage_buffer(
             "solve_patch_power shooter cells",
             // Per slot and sub-cell: unshot power and area, then the centroid.
@@ -740,6 +751,25 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
         ],
     });
 
+    // Apart from the shots' group: its output is the near-field pass's
+    // indirect arguments, which no bind group of that pass may hold.
+    let near_dispatch_layout = layout(
+        "solve_shoot near_dispatch",
+        &[
+            // 10: the near-field list (its count), 12: the workgroup counts (written)
+            gpu::storage_entry(10, false, compute),
+            gpu::storage_entry(12, false, compute),
+        ],
+    );
+    let near_dispatch_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("solve_shoot near_dispatch"),
+        layout: &near_dispatch_layout,
+        entries: &[
+            wgpu::BindGroupEntry { binding: 10, resource: r.near_list.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 12, resource: r.near_args.as_entire_binding() },
+        ],
+    });
+
     let module = gpu.shader(Shader::SolveHemicube);
     let front_target = [Some(wgpu::ColorTargetState::from(FRONT_FORMAT))];
     let hemicube_pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -775,6 +805,10 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
         finish: gpu.compute_pipeline(Shader::SolveShoot, "finish", &[&shoot_layout]),
         shoot: (gpu.compute_pipeline(Shader::SolveShoot, "main", &[&shoot_layout]), shoot_group),
         near_field: gpu.compute_pipeline(Shader::SolveShoot, "near_field", &[&shoot_layout]),
+        near_dispatch: (
+            gpu.compute_pipeline(Shader::SolveShoot, "near_dispatch", &[&near_dispatch_layout]),
+            near_dispatch_group,
+        ),
     }
 }
 
