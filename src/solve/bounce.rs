@@ -146,6 +146,9 @@ pub struct BounceStats {
     pub patches: usize,
     pub shots: u64,
     pub batches: u64,
+    /// Seconds the pass took, less the read-backs of the `--reference`
+    /// probes at every trace point (a measurement, not part of the bake; the
+    /// trace's clock leaves them out too).
     pub seconds: f64,
     /// "converged", "max shots" or "max time".
     pub stopped_by: String,
@@ -485,7 +488,7 @@ pub fn run(
         patches: patches.patches.len(),
         shots,
         batches,
-        seconds: start.elapsed().as_secs_f64(),
+        seconds: start.elapsed().as_secs_f64() - probe_seconds,
         stopped_by,
         unshot_fraction,
         closure,
