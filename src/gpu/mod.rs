@@ -318,6 +318,51 @@ impl Gpu {
         })
     }
 
+    /// A storage buffer holding `parts` one after another, written straight
+    /// into the mapped buffer (no joined copy on the CPU).
+    pub fn storage_buffer_of_parts<T: bytemuck::Pod>(
+        &self,
+        label: &str,
+        parts: &[&[T]],
+        extra: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
+        let size = (parts.iter().map(|p| std::mem::size_of_val(*p)).sum::<usize>() as u64).max(16);
+        let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: size.next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT),
+            usage: wgpu::BufferUsages::STORAGE | extra,
+            mapped_at_creation: true,
+        });
+        {
+            let mut mapped =
+                buffer.get_mapped_range_mut(..).expect("a buffer created mapped has its whole range mapped");
+            let mut offset = 0;
+            for part in parts {
+                let bytes: &[u8] = bytemuck::cast_slice(part);
+                mapped.slice(offset..offset + bytes.len()).copy_from_slice(bytes);
+                offset += bytes.len();
+            }
+        }
+        buffer.unmap();
+        buffer
+    }
+
+    /// A storage buffer of `count` zeroed elements of `T` (wgpu zeroes new
+    /// buffers: nothing is built on the CPU or uploaded).
+    pub fn zeroed_storage_buffer<T: bytemuck::Pod>(
+        &self,
+        label: &str,
+        count: usize,
+        extra: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: ((count * std::mem::size_of::<T>()) as u64).max(16),
+            usage: wgpu::BufferUsages::STORAGE | extra,
+            mapped_at_creation: false,
+        })
+    }
+
     /// A storage buffer initialised with `data` (at least 4 bytes, so empty
     /// inputs still bind).
     pub fn storage_buffer<T: bytemuck::Pod>(&self, label: &str, data: &[T], extra: wgpu::BufferUsages) -> wgpu::Buffer {

@@ -7,7 +7,6 @@
 //! Shadow-map bias is scaled by the shadow map's texel size in world units,
 //! so it is the same fraction of the scene at 1 mm and at 10 km.
 
-use std::borrow::Cow;
 use std::time::Instant;
 
 use anyhow::Result;
@@ -163,12 +162,9 @@ pub fn run(
     let batch = batch_size(gpu, size, options.batch_size);
     let tiles_per_row_value = (batch as f64).sqrt().ceil() as u32;
     let texel_world = 2.0 * radius / size as f32;
-    let points: Cow<[Texel]> = if samples.is_empty() {
-        Cow::Borrowed(&texels.texels)
-    } else {
-        Cow::Owned([&texels.texels[..], samples].concat())
-    };
-    let texel_count = points.len() as u32;
+    // The texels, then the samples, gathered as one list of points.
+    let point_count = texels.texels.len() + samples.len();
+    let texel_count = point_count as u32;
     let (groups_x, groups_y) = gpu.dispatch_size(texel_count, 64);
     let mut params = DirectParams {
         centre: centre.to_array(),
@@ -189,11 +185,12 @@ pub fn run(
 
     let params_buffer = gpu.uniform_buffer("solve_direct params", &params);
     let lights_buffer = gpu.uniform_buffer("solve_direct lights", &[DirectLight::default(); MAX_BATCH as usize]);
-    let texel_buffer = gpu.storage_buffer("solve_direct texels", &points, wgpu::BufferUsages::empty());
+    let texel_buffer =
+        gpu.storage_buffer_of_parts("solve_direct texels", &[&texels.texels, samples], wgpu::BufferUsages::empty());
     let coverage =
-        gpu.storage_buffer("solve_direct coverage", &vec![[0.0f32; 2]; points.len()], wgpu::BufferUsages::COPY_SRC);
+        gpu.zeroed_storage_buffer::<[f32; 2]>("solve_direct coverage", point_count, wgpu::BufferUsages::COPY_SRC);
     let irradiance =
-        gpu.storage_buffer("solve_direct irradiance", &vec![[0.0f32; 4]; points.len()], wgpu::BufferUsages::COPY_SRC);
+        gpu.zeroed_storage_buffer::<[f32; 4]>("solve_direct irradiance", point_count, wgpu::BufferUsages::COPY_SRC);
     let tiles_per_row = (batch as f64).sqrt().ceil() as u32;
     let tile_rows = batch.div_ceil(tiles_per_row);
     let depth_atlas =
@@ -372,7 +369,7 @@ pub fn run(
         progress((chunk_index * batch as usize + chunk.len()) as u64, total);
     }
     let count = texels.texels.len();
-    let sums: Vec<[f32; 4]> = read_buffer(gpu, &irradiance, points.len())?;
+    let sums: Vec<[f32; 4]> = read_buffer(gpu, &irradiance, point_count)?;
     let covered: Vec<[f32; 2]> = read_buffer(gpu, &coverage, count)?;
     gpu.check("solve (direct)")?;
     let mut irradiance: Vec<[f32; 3]> = sums.into_iter().map(|e| [e[0], e[1], e[2]]).collect();
