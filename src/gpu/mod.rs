@@ -318,8 +318,9 @@ impl Gpu {
         })
     }
 
-    /// A storage buffer holding `parts` one after another, written straight
-    /// into the mapped buffer (no joined copy on the CPU).
+    /// A storage buffer holding `parts` one after another (at least 16 bytes,
+    /// zero-padded), written straight into the mapped buffer (no joined copy
+    /// on the CPU).
     pub fn storage_buffer_of_parts<T: bytemuck::Pod>(
         &self,
         label: &str,
@@ -363,23 +364,10 @@ impl Gpu {
         })
     }
 
-    /// A storage buffer initialised with `data` (at least 4 bytes, so empty
+    /// A storage buffer initialised with `data` (at least 16 bytes, so empty
     /// inputs still bind).
     pub fn storage_buffer<T: bytemuck::Pod>(&self, label: &str, data: &[T], extra: wgpu::BufferUsages) -> wgpu::Buffer {
-        use wgpu::util::DeviceExt;
-        let bytes: &[u8] = bytemuck::cast_slice(data);
-        let padded;
-        let contents = if bytes.len() < 16 {
-            padded = [bytes, &[0u8; 16][..16 - bytes.len()]].concat();
-            &padded[..]
-        } else {
-            bytes
-        };
-        self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents,
-            usage: wgpu::BufferUsages::STORAGE | extra,
-        })
+        self.storage_buffer_of_parts(label, &[data], extra)
     }
 
     /// A uniform buffer holding one `T`.

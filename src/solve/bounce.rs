@@ -581,34 +581,28 @@ fn resources(
         members: gpu.storage_buffer("solve_patch_power members", &patches.members, none),
         unshot: gpu.storage_buffer("solve_shoot unshot", unshot, wgpu::BufferUsages::COPY_SRC),
         lightmap: gpu.storage_buffer("solve_shoot lightmap", &lightmap4, wgpu::BufferUsages::COPY_SRC),
-        patch_power: gpu.storage_buffer("solve_patch_power power", &vec![[0f32; 4]; patches.patches.len()], none),
-        patch_origin: gpu.storage_buffer("solve_patch_power origins", &vec![[0f32; 4]; patches.patches.len()], none),
-        chosen: gpu.storage_buffer("solve_select chosen", &vec![0u32; patches.patches.len()], none),
+        patch_power: gpu.zeroed_storage_buffer::<[f32; 4]>("solve_patch_power power", patches.patches.len(), none),
+        patch_origin: gpu.zeroed_storage_buffer::<[f32; 4]>("solve_patch_power origins", patches.patches.len(), none),
+        chosen: gpu.zeroed_storage_buffer::<u32>("solve_select chosen", patches.patches.len(), none),
         shooters: gpu.storage_buffer("solve_select shooters", &[Shooter::default(); MAX_SHOOTERS as usize], none),
         stats: gpu.storage_buffer("solve_select stats", &[GpuStats::default()], wgpu::BufferUsages::COPY_SRC),
-        patch_scale: gpu.storage_buffer(
+        patch_scale: gpu.zeroed_storage_buffer::<f32>(
             "solve_shoot patch scales",
-            &vec![0f32; patches.patches.len().max(1)],
+            patches.patches.len(),
             wgpu::BufferUsages::COPY_DST,
         ),
-        partials: gpu.storage_buffer(
+        partials: gpu.zeroed_storage_buffer::<f32>(
             "solve_shoot measured sums",
-            &vec![0f32; (2 * MAX_SHOOTERS * params.chunk_count) as usize],
+            (2 * MAX_SHOOTERS * params.chunk_count) as usize,
             none,
         ),
-        near_list: gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("solve_shoot near-field receivers"),
-            // A count (padded to 8 bytes), then at most one entry per texel.
-            size: 8 + 8 * texels.texels.len().max(1) as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        }),
-        near_args: gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("solve_shoot near-field dispatch"),
-            size: 12,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
-            mapped_at_creation: false,
-        }),
+        // A count (padded to 8 bytes), then at most one entry per texel.
+        near_list: gpu.zeroed_storage_buffer::<[u32; 2]>(
+            "solve_shoot near-field receivers",
+            1 + texels.texels.len().max(1),
+            wgpu::BufferUsages::COPY_DST,
+        ),
+        near_args: gpu.zeroed_storage_buffer::<u32>("solve_shoot near-field dispatch", 3, wgpu::BufferUsages::INDIRECT),
         shooter_cells: gpu.storage_buffer(
             "solve_patch_power shooter cells",
             // Per slot and sub-cell: unshot power and area, then the centroid.
