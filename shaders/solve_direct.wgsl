@@ -238,11 +238,18 @@ fn same_slope(mine: vec3f, theirs: vec2f) -> bool {
 // (as `lit_by`). A point inside a marched ray (`interior`) is clear
 // unless it lies inside the solid the depth maps bound there: behind the
 // first surface (and not the receiver's plane) and in front of the second,
-// within the ray's depth step plus the first surface's own depth change
-// across a texel (a ray crossing a thin slab between two points still has
-// one point inside). A point behind the second layer passes behind the
-// object, as a ray from the shadow of a post passes beside the post.
-fn ray_point_clear(at: vec2f, r: Receiver, z: f32, interior: bool, step_depth: f32) -> bool {
+// each widened by the first surface's own depth change across a texel and
+// by half the ray's depth step (`half_step`; 0 outside a march). The
+// widening makes a ray crossing a thin slab between two points still have
+// one point inside; taking half a step on each side, not a whole one
+// behind, keeps the crossing where it is: a whole step behind moved each
+// slab edge a step along the rays, and narrowed a wide penumbra, its lit
+// side most (tests/shadow.rs, the wide sun). A march's last point, at the
+// farthest blocker's depth, takes the half step in front too: it lies on
+// that blocker where the ray meets it. A point behind the second layer
+// passes behind the object, as a ray from the shadow of a post passes
+// beside the post.
+fn ray_point_clear(at: vec2f, r: Receiver, z: f32, interior: bool, half_step: f32) -> bool {
     let cell = map_cell(at);
     let stored = textureLoad(depth_maps, cell + r.tile, 0);
     let n = neighbour_depths(cell, r.tile);
@@ -255,14 +262,14 @@ fn ray_point_clear(at: vec2f, r: Receiver, z: f32, interior: bool, step_depth: f
     // At the receiver's own depth, a surface it nearly touches from behind
     // blocks however little it lies in front (`covers_receiver`).
     let covered = z >= r.z && covers_receiver(vec2f(cell), stored, slope, r);
-    if (z <= stored + r.bias - across && !covered) {
+    if (z <= stored + r.bias - across - half_step && !covered) {
         return true;
     }
     if (on_receiver_plane(vec2f(cell), stored, n, r)) {
         return true;
     }
     let back = textureLoad(second_layer, cell + r.tile, 0);
-    return interior && !(z <= back + step_depth + across + r.bias);
+    return interior && !(z <= back + half_step + across + r.bias);
 }
 
 // How much of a distant light of angular radius atan(tan_alpha) reaches the
@@ -351,7 +358,14 @@ fn light_visibility(r: Receiver, tan_alpha: f32, spin: f32) -> f32 {
 // lightens, as they do.
 fn ray_visibility(r: Receiver, march: bool, radius: f32, end_depth: f32, spin: f32) -> f32 {
     var lit = 0.0;
-    for (var j = 0u; j < MAX_RAYS; j++) {
+    for (var i = 0u; i < MAX_RAYS; i++) {
+        // The even rays first, then the odd ones: each half spans the whole
+        // disc, and where the first half agrees (umbra, or the light's whole
+        // disc in view) the second is not traced.
+        if (i == MAX_RAYS / 2u && (lit == 0.0 || lit == f32(MAX_RAYS / 2u))) {
+            return lit / f32(MAX_RAYS / 2u);
+        }
+        let j = select(2u * i, 2u * i + 1u - MAX_RAYS, i >= MAX_RAYS / 2u);
         let offset = spiral(j, MAX_RAYS, spin + 1.0) * radius;
         // A march's points are MARCH_SPACING apart from the receiver itself
         // (a surface just above it, such as the side of a box it stands
@@ -369,7 +383,7 @@ fn ray_visibility(r: Receiver, march: bool, radius: f32, end_depth: f32, spin: f
             let last = s + 1u == points;
             let z = select(mix(r.z, end_depth, t), select(r.z, end_depth, march), last);
             let at = select(r.pixel + t * offset, r.pixel + offset, last);
-            clear = ray_point_clear(at, r, z, march && !last, step_depth);
+            clear = ray_point_clear(at, r, z, march && !last, select(0.0, 0.5 * step_depth, march));
         }
         if (clear) {
             lit += 1.0;

@@ -92,7 +92,7 @@ fn an_energy_driven_light_set_keeps_the_sun_shadow_sharp() {
     eprintln!(
         "96 lights: energy-driven shadow depth {sharp_depth:.3}, edge {sharp_width:.2} m; cube:4 depth {cube_depth:.3}, edge {cube_width:.2} m"
     );
-    // Measured: depth 0.423 against 0.364, edge 0.09 m against 0.14 m (the
+    // Measured: depth 0.423 against 0.363, edge 0.10 m against 0.14 m (the
     // outer penumbra, where nothing shades the receiver within the 4-texel
     // filter, stays lit: the edge is narrower than the cone gives).
     assert!(sharp_depth > 1.1 * cube_depth, "the energy-driven shadow is deeper");

@@ -178,3 +178,85 @@ fn floor_around_a_ball_resting_on_it_sees_the_sky_the_ball_leaves() {
     assert!(inner > 0.86, "15–25 cm from the contact: {inner} of the sky the ball leaves");
     assert!(outer > 0.95, "25–40 cm from the contact: {outer} of the sky the ball leaves");
 }
+
+/// A wide sun's penumbra has the analytic profile of a disc uncovered by a
+/// straight edge. A thin black slab floats above a black ground under a sun
+/// of angular radius α = 5° straight overhead (one light, nothing else).
+/// From a ground point a distance x outside the slab's edge, the edge (the
+/// top one; the bottom one from inside) stands at θ = atan(x / h) from the
+/// zenith, so the share of the sun's disc in view is that of a disc cut by
+/// a chord at d = θ/α of its radius: 1/2 + (d√(1 − d²) + asin d)/π. At these
+/// heights the penumbra is 5 and 10 lightmap texels wide and too wide for
+/// the percentage-closer filter: it is marched, ray by ray.
+///
+/// Under the slab at 2 m, only the inner penumbra is held to the profile: a
+/// receiver whose blocker lies beyond the first blocker search (4
+/// shadow-map texels) is taken as lit, so the outer penumbra's last
+/// 5 cm there is (BENCHMARKS.md, "Wide penumbrae").
+#[test]
+fn a_wide_suns_penumbra_follows_the_share_of_its_disc_in_view() {
+    let gpu = common::gpu();
+    let cos_alpha = 5f32.to_radians().cos();
+    let sun = EnvironmentMap::from_fn(2048, 1024, |d| if d[1] >= cos_alpha { [100.0; 3] } else { [0.0; 3] });
+    let mut lights = common::lights(&sun, LightMode::Budget { count: 32 });
+    // The disc as the one light it is (extraction may split a wide disc),
+    // its energy kept. The map's pixels make its solid angle a few per cent
+    // less than the disc's: the light is the cone of the solid angle it has.
+    let solid_angle: f32 = lights.lights.iter().map(|l| l.solid_angle).sum();
+    let energy: f32 = lights.lights.iter().map(|l| l.radiance[0] * l.solid_angle).sum();
+    lights.lights = vec![Light { direction: [0.0, 1.0, 0.0], solid_angle, radiance: [energy / solid_angle; 3] }];
+    let alpha = (1.0 - solid_angle / std::f32::consts::TAU).acos();
+    assert!((alpha.to_degrees() - 5.0).abs() < 0.1, "the sun's radius is {}°", alpha.to_degrees());
+
+    let turn = Quat::from_rotation_y(30f32.to_radians());
+    let local = |p: Vec3| turn.inverse() * p;
+    let (side, thickness) = (3.0f32, 0.02f32);
+    let in_view = |d: f32| {
+        let d = d.clamp(-1.0, 1.0);
+        0.5 + (d * (1.0 - d * d).sqrt() + d.asin()) / std::f32::consts::PI
+    };
+    for height in [1.0f32, 2.0] {
+        let mut builder = SceneBuilder::new();
+        builder.object("ground", &MeshData::plane(6.0, 6.0, 4), [0.0, 0.0, 0.0, 1.0], [0.0; 3], Placement::default());
+        builder.object(
+            "slab",
+            &MeshData::cuboid([side, thickness, side]),
+            [0.0, 0.0, 0.0, 1.0],
+            [0.0; 3],
+            Placement::at(Vec3::Y * height).rotated(turn),
+        );
+        let baked = common::bake(&gpu, &builder, &lights, &common::options(256));
+        let ground = common::values_of(&baked, 0);
+        let open =
+            ground.iter().filter(|(t, _)| local(t.position()).xz().length() > 2.6).map(|v| v.1).fold(0.0, f32::max);
+        // Penumbra texels: all of them, and those under the slab.
+        let (mut all, mut inner) = (Vec::new(), Vec::new());
+        for (t, value) in &ground {
+            // Along the slab's edges, away from its corners.
+            let q = local(t.position()).xz().abs();
+            if q.min_element() > side / 2.0 - 0.5 {
+                continue;
+            }
+            let x = q.max_element() - side / 2.0;
+            let edge = height + if x > 0.0 { thickness } else { -thickness } / 2.0;
+            let expected = in_view((x / edge).atan() / alpha);
+            if expected > 0.02 && expected < 0.98 {
+                let error = (value / open - expected).abs();
+                all.push(error);
+                if x < 0.0 {
+                    inner.push(error);
+                }
+            }
+        }
+        let mean = |e: &[f32]| e.iter().sum::<f32>() / e.len().max(1) as f32;
+        let (mean_all, mean_inner) = (mean(&all), mean(&inner));
+        eprintln!(
+            "slab at {height} m: {} penumbra texels, mean |value − share in view| {mean_all:.4} ({mean_inner:.4} under \
+             the slab)",
+            all.len()
+        );
+        let (count, mean) = if height < 1.5 { (all.len(), mean_all) } else { (inner.len(), mean_inner) };
+        assert!(count >= 100, "only {count} texels in the penumbra");
+        assert!(mean < 0.035, "the penumbra under a slab at {height} m is {mean} from the disc's share in view");
+    }
+}
