@@ -101,6 +101,9 @@ struct DirectParams {
 struct DirectLight {
     direction: vec4f,
     power: vec4f,
+    // x: the depth in the light's shadow map of the scene's bounding-box
+    // corner nearest the light: no surface lies in front of it.
+    nearest: vec4f,
 }
 
 const MAX_BATCH: u32 = 256u;

@@ -23,7 +23,8 @@
 
 // Longest sideways march of a shadow ray, shadow-map texels: a light
 // so wide that its rays leave the blocker further out than this (cube:4's
-// lights are 0.08 sr) keeps a penumbra this wide, a little too sharp.
+// lights are 0.08 sr; a budget light of 0.06 sr a few metres from a wall
+// at 512² maps) keeps a penumbra this wide, too sharp.
 const MAX_MARCH: f32 = 24.0;
 // Blocker-search taps: at least 8, more as the search widens so that taps
 // stay about three shadow-map texels apart, up to 32.
@@ -48,12 +49,25 @@ const PCF_LIMIT: f32 = 4.0;
 // wall seen edge-on is a band a texel or two wide, and a ray must not step
 // over it.
 const MARCH_SPACING: f32 = 1.0;
+// Height above the receiver's tangent plane, shadow-map texels, below which
+// the wide blocker search takes a surface for the receiver's own (or one it
+// lies on): such a surface can only hide the part of a light below the
+// receiver's horizon, which the cosine already weighs.
+const ABOVE_PLANE: f32 = 0.25;
 
 // Tap j of n on a golden-angle spiral filling the unit disc, turned by
 // `spin` (computed, not read from an array: a CPU driver would keep an
 // indexed array in memory per lane).
 fn spiral(j: u32, n: u32, spin: f32) -> vec2f {
     let r = sqrt((f32(j) + 0.5) / f32(n));
+    let a = f32(j) * 2.39996323 + spin;
+    return r * vec2f(cos(a), sin(a));
+}
+
+// Tap j of n on a golden-angle spiral filling the ring between radii
+// `inner` and `outer` evenly, turned by `spin`.
+fn ring_tap(j: u32, n: u32, inner: f32, outer: f32, spin: f32) -> vec2f {
+    let r = sqrt(mix(inner * inner, outer * outer, (f32(j) + 0.5) / f32(n)));
     let a = f32(j) * 2.39996323 + spin;
     return r * vec2f(cos(a), sin(a));
 }
@@ -69,6 +83,7 @@ struct Receiver {
     slope: vec2f,          // the surface plane's depth change per shadow-map texel
     tile: vec2<i32>,       // the light's tile in the depth atlas
     front: bool,           // the light is on the front of the receiver's geometric face
+    rise: vec3f,           // height above the receiver's tangent plane per shadow-map texel (x, y) and unit of depth
 }
 
 // Whether the receiver is lit as seen by the shadow-map texel holding `at`
@@ -90,13 +105,34 @@ fn lit_at(at: vec2f, r: Receiver) -> bool {
 fn blocker_at(at: vec2f, r: Receiver) -> f32 {
     let cell = map_cell(at);
     let stored = textureLoad(depth_maps, cell + r.tile, 0);
-    return select(stored, -1.0, lit_by(cell, stored, r));
+    return select(stored, -1.0, lit_by(cell, stored, neighbour_depths(cell, r.tile), r));
+}
+
+// As `blocker_at` for a tap `sideways` shadow-map texels from the receiver,
+// but only a blocker that some ray within the light's cone (which moves
+// `depth_to_texels` sideways per unit of depth) can reach: one further out
+// than its depth in front of the receiver lets it is no blocker of this
+// light, however far in front it lies (a wall seen at a grazing angle, the
+// receiver's own surface curving up). The surface's depth change across
+// the texel and a texel of sideways slack keep a slanted or edge-on
+// surface that reaches into the cone.
+fn blocker_in_cone(at: vec2f, r: Receiver, sideways: f32, depth_to_texels: f32) -> f32 {
+    let cell = map_cell(at);
+    let stored = textureLoad(depth_maps, cell + r.tile, 0);
+    let height = dot(r.rise, vec3f(vec2f(cell) + 0.5 - r.surface_pixel, stored - r.surface_z));
+    if (height <= ABOVE_PLANE) {
+        return -1.0;
+    }
+    let n = neighbour_depths(cell, r.tile);
+    let slope = stored_slope(stored, n);
+    let nearest_part = stored - max(abs(slope.x), abs(slope.y));
+    let reachable = sideways <= (r.z - nearest_part) * depth_to_texels + 1.0;
+    return select(-1.0, stored, reachable && !lit_by(cell, stored, n, r));
 }
 
 // Whether the receiver is lit past the surface the depth map holds at
 // texel `cell`, depth `stored` (as `lit_at`).
-fn lit_by(cell: vec2<i32>, stored: f32, r: Receiver) -> bool {
-    let n = neighbour_depths(cell, r.tile);
+fn lit_by(cell: vec2<i32>, stored: f32, n: vec4f, r: Receiver) -> bool {
     if (r.z <= stored + r.bias && !covers_receiver(vec2f(cell), stored, stored_slope(stored, n), r)) {
         return true;
     }
@@ -278,11 +314,13 @@ fn ray_point_clear(at: vec2f, r: Receiver, z: f32, interior: bool, half_step: f3
 // second, wider search finds the farthest. Penumbrae up to PCF_LIMIT texels
 // are filtered (percentage-closer soft shadows); wider ones are marched,
 // ray by ray, through both depth layers (`ray_visibility`).
-fn light_visibility(r: Receiver, tan_alpha: f32, spin: f32) -> f32 {
+fn light_visibility(r: Receiver, tan_alpha: f32, nearest_depth: f32, spin: f32) -> f32 {
     let size = params.map_size;
     // Sideways shadow-map texels a rim ray moves per unit of depth.
     let depth_to_texels = tan_alpha * size;
-    let reach = r.z * depth_to_texels;
+    // How far sideways a rim ray has moved where it leaves the scene: no
+    // blocker lies further out.
+    let reach = max(r.z - nearest_depth, 0.0) * depth_to_texels;
     if (reach < 0.75) {
         return select(0.0, 1.0, lit_at(r.pixel, r));
     }
@@ -300,25 +338,41 @@ fn light_visibility(r: Receiver, tan_alpha: f32, spin: f32) -> f32 {
             nearest = max(nearest, blocker);
         }
     }
-    if (!near_blocked) {
-        // Nothing shades the receiver's neighbourhood. (A wide search alone
-        // would count the receiver's own plane, far out at a grazing angle,
-        // as a blocker.)
+    if (!near_blocked && reach <= PCF_LIMIT) {
         return 1.0;
     }
     var span = 0.0;
     if (reach > PCF_LIMIT) {
         // The farthest blocker over the widest footprint the light's rays
-        // can have says whether the penumbra is wider than the filter takes.
+        // can have says whether the penumbra is wider than the filter takes;
+        // where the first search found none, whether the receiver is in the
+        // outer part of a wide penumbra at all.
         let search = min(reach, MAX_MARCH);
-        let search_taps = clamp(u32(search * search / 3.0), MIN_SEARCH_TAPS, MAX_SEARCH_TAPS);
+        // Where the first search found nothing, only the ring beyond it is
+        // searched, and sparsely: a receiver in the outer part of a wide
+        // penumbra has its blocker over much of that ring, and one that a
+        // sparse search misses lies where little of the light is hidden.
+        let inner = select(0.0, near_search, !near_blocked);
+        let dense = clamp(u32(search * search / 3.0), MIN_SEARCH_TAPS, MAX_SEARCH_TAPS);
+        let search_taps = select(MIN_SEARCH_TAPS, dense, near_blocked);
         var farthest = r.z;
+        var far_blocked = false;
         for (var j = 0u; j < search_taps; j++) {
-            let at = r.pixel + spiral(j, search_taps, spin + 2.0) * search;
-            let blocker = blocker_at(at, r);
+            let tap = ring_tap(j, search_taps, inner, search, spin + 2.0);
+            let blocker = blocker_in_cone(r.pixel + tap, r, length(tap), depth_to_texels);
             if (blocker >= 0.0) {
+                far_blocked = true;
                 farthest = min(farthest, blocker);
             }
+        }
+        // A penumbra wider than MAX_MARCH is marched narrower than it is,
+        // its inner part too dark; lighting its outer part beyond the first
+        // search keeps its sum (an independent tracer agrees better so).
+        if (!near_blocked) {
+            if (!far_blocked || (r.z - farthest) * depth_to_texels > MAX_MARCH) {
+                return 1.0;
+            }
+            nearest = farthest;
         }
         farthest = min(farthest, nearest);
         span = (r.z - farthest) * depth_to_texels;
@@ -434,8 +488,10 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         // The receiver plane's depth per shadow-map texel (x right, y down).
         let f_dot_w = select(-1.0, 1.0, dot(face, w) >= 0.0) * max(abs(dot(face, w)), 1.0 / params.max_slope);
         let slope = vec2f(dot(face, m[0]), -dot(face, m[1])) / f_dot_w * (texel_world * 0.5 / params.radius);
-        let receiver = Receiver(lifted.xy, lifted.z, bias, surface.xy, surface.z, 0.0, slope, tile, dot(face, w) > 0.0);
-        let visible = light_visibility(receiver, light.direction.w, spin);
+        let rise = vec3f(dot(face, m[0]), -dot(face, m[1]), -size * dot(face, w));
+        let receiver =
+            Receiver(lifted.xy, lifted.z, bias, surface.xy, surface.z, 0.0, slope, tile, dot(face, w) > 0.0, rise);
+        let visible = light_visibility(receiver, light.direction.w, light.nearest.x, spin);
         sum += light.power.rgb * cos_n * visible;
         // Coverage counts only directions in front of the geometric face: a
         // light behind the facet but in front of the shading normal is cut

@@ -94,6 +94,7 @@ struct DirectParams {
 struct DirectLight {
     direction: [f32; 4],
     power: [f32; 4],
+    nearest: [f32; 4],
 }
 
 /// The scene's bounding sphere (centre, radius with a margin so that
@@ -108,6 +109,15 @@ pub(super) fn bounding_sphere(scene: &Scene) -> (Vec3, f32) {
         .map(|&p| (Vec3::from(p) - centre).length())
         .fold(0.0f32, f32::max);
     (centre, (radius * 1.02).max(f32::MIN_POSITIVE * 1e6))
+}
+
+/// The shadow-map depth (0 at the near plane, 1 at the far) of the corner of
+/// the scene's bounding box nearest the light from `towards_light`: nothing
+/// the light's map holds lies in front of it, so no blocker can be further
+/// in front of a receiver than that.
+fn nearest_depth((lo, hi): (Vec3, Vec3), centre: Vec3, radius: f32, towards_light: Vec3) -> f32 {
+    let corner = Vec3::select(towards_light.cmpge(Vec3::ZERO), hi, lo);
+    (0.5 - 0.5 * (corner - centre).dot(towards_light) / radius).max(0.0)
 }
 
 /// Shadow maps resolve about two texels per lightmap texel across the scene.
@@ -155,6 +165,7 @@ pub fn run(
 ) -> Result<Direct> {
     let start = Instant::now();
     let (centre, radius) = bounding_sphere(scene);
+    let bounds = scene.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
     let size = options
         .shadow_map_size
         .unwrap_or_else(|| auto_shadow_map_size(radius, texels_per_unit, gpu.limits.max_texture_dimension_2d))
@@ -323,6 +334,7 @@ pub fn run(
             let tan_alpha = (1.0 - cos_alpha * cos_alpha).sqrt() / cos_alpha;
             slot.direction = [light.direction[0], light.direction[1], light.direction[2], tan_alpha];
             slot.power = [r * omega, g * omega, b * omega, omega];
+            slot.nearest = [nearest_depth(bounds, centre, radius, Vec3::from(light.direction)), 0.0, 0.0, 0.0];
         }
         params.light_count = chunk.len() as u32;
         gpu.queue.write_buffer(&params_buffer, 0, bytemuck::bytes_of(&params));
