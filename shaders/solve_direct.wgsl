@@ -59,9 +59,7 @@ const ABOVE_PLANE: f32 = 0.25;
 // `spin` (computed, not read from an array: a CPU driver would keep an
 // indexed array in memory per lane).
 fn spiral(j: u32, n: u32, spin: f32) -> vec2f {
-    let r = sqrt((f32(j) + 0.5) / f32(n));
-    let a = f32(j) * 2.39996323 + spin;
-    return r * vec2f(cos(a), sin(a));
+    return ring_tap(j, n, 0.0, 1.0, spin);
 }
 
 // Tap j of n on a golden-angle spiral filling the ring between radii
