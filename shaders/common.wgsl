@@ -296,6 +296,7 @@ struct CasterIn {
     @location(1) material: u32,
     @location(2) uv0: vec2f,
     @location(3) uv1: vec2f,
+    @location(4) sheet: u32,                        // 1 on an open surface (solve::surfaces)
 }
 
 // What a caster's fragment needs to test its material's alpha cut-out.
@@ -306,4 +307,5 @@ struct CasterOut {
     @location(2) uv0: vec2f,
     @location(3) uv1: vec2f,
     @location(4) @interpolate(flat) face: u32,     // hemicube face (hemicubes)
+    @location(5) @interpolate(flat) sheet: u32,    // as CasterIn's (depth maps)
 }

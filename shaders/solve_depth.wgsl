@@ -2,8 +2,9 @@
 // (design notes, algorithm step 3), tiled into one depth atlas; the draw's
 // instance index names the light slot. Triangles of alpha-MASK materials
 // are drawn by `fs_depth_masked`, which discards their cut-out fragments so
-// light passes through the holes. The first layer marks in its depth's
-// lowest bit the surfaces whose back faces the light (`with_facing`).
+// light passes through the holes. Both layers mark in their depths' two
+// lowest bits the surfaces whose back faces the light and those on an open
+// surface, a sheet (`with_facing`).
 
 @group(0) @binding(0) var<uniform> params: DirectParams;
 @group(0) @binding(1) var<uniform> lights: LightBatch;
@@ -20,6 +21,7 @@ fn vs_depth(in: CasterIn, @builtin(instance_index) slot: u32) -> CasterOut {
     out.material = in.material;
     out.uv0 = in.uv0;
     out.uv1 = in.uv1;
+    out.sheet = in.sheet;
     return out;
 }
 
@@ -32,18 +34,20 @@ fn cut_out(in: CasterOut) -> bool {
 }
 
 // The fragment's depth with its lowest bit set where the light sees the
-// triangle's back (`seen_from_behind` in solve_direct.wgsl). The casters are
-// wound so that their front is the side their lightmap texels face; the
-// light-space frame keeps handedness, so that side faces the light exactly
-// where the rasterizer calls it front-facing. One unit in the last place
-// moves no surface past another that matters.
-fn with_facing(z: f32, front: bool) -> f32 {
-    return bitcast<f32>((bitcast<u32>(z) & ~1u) | select(1u, 0u, front));
+// triangle's back (`seen_from_behind` in solve_direct.wgsl), and the next
+// where the triangle lies on an open surface (`on_sheet`). The
+// casters are wound so that their front is the side their lightmap texels
+// face; the light-space frame keeps handedness, so that side faces the
+// light exactly where the rasterizer calls it front-facing. Three units in
+// the last place move no surface past another that matters.
+fn with_facing(in: CasterOut, front: bool) -> f32 {
+    let marks = select(1u, 0u, front) | (min(in.sheet, 1u) << 1u);
+    return bitcast<f32>((bitcast<u32>(in.clip.z) & ~3u) | marks);
 }
 
 @fragment
 fn fs_depth(in: CasterOut, @builtin(front_facing) front: bool) -> @builtin(frag_depth) f32 {
-    return with_facing(in.clip.z, front);
+    return with_facing(in, front);
 }
 
 @fragment
@@ -51,7 +55,7 @@ fn fs_depth_masked(in: CasterOut, @builtin(front_facing) front: bool) -> @builti
     if (cut_out(in)) {
         discard;
     }
-    return with_facing(in.clip.z, front);
+    return with_facing(in, front);
 }
 
 // The second layer: the nearest surface behind the first (depth peeling).
@@ -68,17 +72,19 @@ fn behind_front(position: vec4f) -> bool {
 }
 
 @fragment
-fn fs_depth_peel(in: CasterOut) {
+fn fs_depth_peel(in: CasterOut, @builtin(front_facing) front: bool) -> @builtin(frag_depth) f32 {
     if (!behind_front(in.clip)) {
         discard;
     }
+    return with_facing(in, front);
 }
 
 @fragment
-fn fs_depth_peel_masked(in: CasterOut) {
+fn fs_depth_peel_masked(in: CasterOut, @builtin(front_facing) front: bool) -> @builtin(frag_depth) f32 {
     // Derivatives first, while the quad is whole.
     let cut = cut_out(in);
     if (cut || !behind_front(in.clip)) {
         discard;
     }
+    return with_facing(in, front);
 }

@@ -143,6 +143,13 @@ fn seen_from_behind(stored: f32) -> bool {
     return (bitcast<u32>(stored) & 1u) != 0u;
 }
 
+// Whether a depth of either layer is of an open surface (solve::surfaces):
+// a sheet of zero thickness, with open space on both sides, not a solid's
+// skin or a sealed room's wall, whose inside is closed to the light.
+fn on_sheet(stored: f32) -> bool {
+    return (bitcast<u32>(stored) & 2u) != 0u;
+}
+
 // Whether the surface the depth map holds at texel `cell` (depth `stored`,
 // neighbours `n` as `neighbour_depths` gives them) turns its back to the
 // light in front of the receiver's surface point, or at it: a surface the
@@ -236,8 +243,13 @@ fn plane_side(cell: vec2<i32>, towards: i32, stored: f32, near: vec2f, r: Receiv
 
 // The first-layer depth at texel `at` of the light's tile, clamped to the map.
 fn depth_at(at: vec2<i32>, tile: vec2<i32>) -> f32 {
+    return layer_depth_at(depth_maps, at, tile);
+}
+
+// As `depth_at`, of either layer.
+fn layer_depth_at(layer: texture_depth_2d, at: vec2<i32>, tile: vec2<i32>) -> f32 {
     let hi = vec2<i32>(i32(params.map_size) - 1);
-    return textureLoad(depth_maps, clamp(at, vec2<i32>(0), hi) + tile, 0);
+    return textureLoad(layer, clamp(at, vec2<i32>(0), hi) + tile, 0);
 }
 
 // Whether the surface of the neighbouring texel (depth `near`, and `far`
@@ -251,11 +263,16 @@ fn apart(stored: f32, near: f32, far: f32, tolerance: f32) -> bool {
 // First-layer depths of the texels left, right, above and below `cell`
 // (clamped to the map), as x, y, z, w.
 fn neighbour_depths(cell: vec2<i32>, tile: vec2<i32>) -> vec4f {
+    return layer_neighbour_depths(depth_maps, cell, tile);
+}
+
+// As `neighbour_depths`, of either layer.
+fn layer_neighbour_depths(layer: texture_depth_2d, cell: vec2<i32>, tile: vec2<i32>) -> vec4f {
     return vec4f(
-        depth_at(cell - vec2<i32>(1, 0), tile),
-        depth_at(cell + vec2<i32>(1, 0), tile),
-        depth_at(cell - vec2<i32>(0, 1), tile),
-        depth_at(cell + vec2<i32>(0, 1), tile),
+        layer_depth_at(layer, cell - vec2<i32>(1, 0), tile),
+        layer_depth_at(layer, cell + vec2<i32>(1, 0), tile),
+        layer_depth_at(layer, cell - vec2<i32>(0, 1), tile),
+        layer_depth_at(layer, cell + vec2<i32>(0, 1), tile),
     );
 }
 
@@ -283,6 +300,10 @@ fn same_slope(mine: vec3f, theirs: vec2f) -> bool {
 // that blocker where the ray meets it. A point behind the second layer
 // passes behind the object, as a ray from the shadow of a post passes
 // beside the post.
+//
+// Where the first surface is a sheet (an open surface, `on_sheet`), no
+// solid lies behind it: a point inside a march is blocked only within the
+// sheet's band, and then by what the second layer holds (`behind_sheet`).
 fn ray_point_clear(at: vec2f, r: Receiver, z: f32, interior: bool, half_step: f32) -> bool {
     let cell = map_cell(at);
     let stored = textureLoad(depth_maps, cell + r.tile, 0);
@@ -296,14 +317,54 @@ fn ray_point_clear(at: vec2f, r: Receiver, z: f32, interior: bool, half_step: f3
     // At the receiver's own depth, a surface it nearly touches from behind
     // blocks however little it lies in front (`covers_receiver`).
     let covered = z >= r.z && covers_receiver(vec2f(cell), stored, slope, r);
-    if (z <= stored + r.bias - across - half_step && !covered) {
+    // A ray's last point against a sheet where the point is (below).
+    let centre = at - (vec2f(cell) + 0.5);
+    let surface = select(stored, stored + dot(slope, centre), on_sheet(stored) && !interior);
+    if (z <= surface + r.bias - across - half_step && !covered) {
         return true;
     }
     if (on_receiver_plane(vec2f(cell), stored, n, r)) {
         return true;
     }
+    if (!interior) {
+        return false;
+    }
     let back = textureLoad(second_layer, cell + r.tile, 0);
-    return interior && !(z <= back + half_step + across + r.bias);
+    if (!on_sheet(stored)) {
+        return !(z <= back + half_step + across + r.bias);
+    }
+    // The sheet's own depth where the point is: its band is narrow, and
+    // its depth at the texel's centre may be a texel of slope off. Between
+    // two points a texel apart (diagonally) the sheet's depth changes by up
+    // to twice `across`: behind the sheet the band takes that much, so that
+    // a ray crossing a sloped sheet (a floor seen from below, a room's walls
+    // and floor beyond it) keeps a point in it.
+    if (z <= stored + dot(slope, centre) + half_step + 2.0 * across + r.bias) {
+        return false;
+    }
+    return behind_sheet(cell, centre, r, z, back, half_step);
+}
+
+// Whether a march's point at depth `z`, behind a sheet at texel `cell`
+// (`centre`: the point's offset from the texel's centre) and in front of
+// or in the second layer's surface there (depth `back`), is clear. A sheet
+// there blocks within its band too, unless it is the receiver's plane. A
+// closed surface there (a solid standing behind the sheet, a sealed room's
+// wall) blocks from its band on: its far side is in no layer, and a ray
+// from inside it must not get out.
+fn behind_sheet(cell: vec2<i32>, centre: vec2f, r: Receiver, z: f32, back: f32, half_step: f32) -> bool {
+    let n = layer_neighbour_depths(second_layer, cell, r.tile);
+    let slope = stored_slope(back, n);
+    let surface = back + dot(slope, centre) + r.bias;
+    let band = max(abs(slope.x), abs(slope.y)) + half_step;
+    if (z <= surface - band) {
+        return true;
+    }
+    let on_plane = on_receiver_plane(vec2f(cell), back, n, r);
+    if (!on_sheet(back)) {
+        return z <= surface + band && on_plane;
+    }
+    return z > surface + band || on_plane;
 }
 
 // How much of a distant light of angular radius atan(tan_alpha) reaches the
@@ -426,7 +487,11 @@ fn ray_visibility(r: Receiver, march: bool, radius: f32, end_depth: f32, spin: f
         let step_depth = (r.z - end_depth) / f32(steps);
         let points = select(4u, steps + 1u, march);
         var clear = true;
-        for (var s = 0u; s < points && clear; s++) {
+        // From the far end back: a ray is most often blocked there, where
+        // it meets the blockers the search found (a sheet's band is only
+        // there), and the loop ends at its first blocked point.
+        for (var k = 0u; k < points && clear; k++) {
+            let s = points - 1u - k;
             // The filter's points are a quarter, half and three quarters of
             // the way to the blocker, then the tap at the receiver's depth.
             // A march's last point sees, along the light's own direction,

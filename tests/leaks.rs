@@ -39,15 +39,7 @@ fn floor_under_a_box_resting_on_it_stays_dark() {
 #[test]
 fn nothing_inside_a_closed_room_is_lit_from_outside() {
     let gpu = common::gpu();
-    let mut builder = SceneBuilder::new();
-    builder.object(
-        "room",
-        &MeshData::room([4.0, 3.0, 4.0]),
-        [0.7, 0.7, 0.7, 1.0],
-        [0.0; 3],
-        Placement::at(Vec3::Y * 1.5),
-    );
-    builder.object("ground", &MeshData::plane(12.0, 12.0, 4), [0.5, 0.5, 0.5, 1.0], [0.0; 3], Placement::default());
+    let builder = room_on_ground([0.7, 0.7, 0.7, 1.0], [0.5, 0.5, 0.5, 1.0]);
     let sun_and_sky = EnvironmentMap::sun_and_sky([0.5, 0.6, 0.8], [0.3, 0.8, 0.5], 1e4, 1f32.to_radians());
     let lights = common::lights(&sun_and_sky, LightMode::Budget { count: 256 });
     let baked = common::bake(&gpu, &builder, &lights, &common::options(128));
@@ -61,6 +53,37 @@ fn nothing_inside_a_closed_room_is_lit_from_outside() {
     // wall seen obliquely by a ground patch, measured 1.4e-4 of the ground;
     // a real leak through a wall or a contact is of the order of 1e-2 and up.
     assert!(worst <= 1e-3 * ground, "light leaked into the room: {worst} against the ground's {ground}");
+}
+
+/// The same closed room on a ground plane of zero thickness, under light
+/// from below the horizon only. The light sees the ground's underside
+/// first, and the room's floor lies in the ground's plane: the room is in
+/// the depth maps only as what lies behind a sheet, and a shadow ray from
+/// its walls must be caught where it crosses the ground. Unobstructed, a
+/// wall facing sideways would get E/π = L/2 here; one of the 16 shadow rays
+/// of one of the 256 lights (ω ≈ 2π/128) at 60° from the wall's normal
+/// carries L·ω·cos θ/(16π) ≈ 5·10⁻⁴ L, three times the limit.
+#[test]
+fn nothing_inside_a_closed_room_is_lit_from_below_the_ground() {
+    let gpu = common::gpu();
+    let builder = room_on_ground([0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 1.0]);
+    let below = EnvironmentMap::from_fn(512, 256, |d| if d[1] < 0.0 { [1.0; 3] } else { [0.0; 3] });
+    let lights = common::lights(&below, LightMode::Budget { count: 256 });
+    let baked = common::bake(&gpu, &builder, &lights, &common::options(128));
+    let inside = common::values_of(&baked, 0);
+    let (worst, at) =
+        inside.iter().fold((0.0f32, Vec3::ZERO), |a, (t, v)| if *v > a.0 { (*v, t.position()) } else { a });
+    eprintln!("brightest texel inside the room {worst:.2e} at {at}");
+    assert!(worst <= 1.5e-4, "light from below leaked into the room: {worst} at {at}, of a radiance of 1");
+}
+
+/// A closed 4 × 3 × 4 m room of inward-facing walls (object 0) standing on
+/// a 12 m ground plane (object 1), its floor in the ground's plane.
+fn room_on_ground(room: [f32; 4], ground: [f32; 4]) -> SceneBuilder {
+    let mut builder = SceneBuilder::new();
+    builder.object("room", &MeshData::room([4.0, 3.0, 4.0]), room, [0.0; 3], Placement::at(Vec3::Y * 1.5));
+    builder.object("ground", &MeshData::plane(12.0, 12.0, 4), ground, [0.0; 3], Placement::default());
+    builder
 }
 
 /// A wall thinner than a texel stands on a continuous floor under a low

@@ -8,6 +8,7 @@ mod common;
 
 use bake::environment::{EnvironmentMap, Light, LightMode};
 use bake::fixtures::{MeshData, Placement, SceneBuilder};
+use bake::gpu::Gpu;
 use glam::{Quat, Vec3, Vec3Swizzles};
 
 #[test]
@@ -197,6 +198,41 @@ fn floor_around_a_ball_resting_on_it_sees_the_sky_the_ball_leaves() {
 #[test]
 fn a_wide_suns_penumbra_follows_the_share_of_its_disc_in_view() {
     let gpu = common::gpu();
+    let slab = MeshData::cuboid([WIDE_SUN_SIDE, 0.02, WIDE_SUN_SIDE]);
+    for height in [1.0f32, 2.0] {
+        let (all, _) = wide_sun_penumbra_errors(&gpu, &slab, 0.02, Quat::IDENTITY, height);
+        assert!(all < 0.035, "the penumbra under a slab at {height} m is {all} from the disc's share in view");
+    }
+}
+
+/// The same under a sheet of zero thickness (a one-sided plane, an open
+/// surface), facing up to the sun or down, away from it. No solid lies
+/// between the sheet and the ground: the inner penumbra under it follows
+/// the disc's share as the slab's does, and is not black.
+#[test]
+fn a_wide_suns_penumbra_under_a_sheet_follows_the_share_of_its_disc_in_view() {
+    let gpu = common::gpu();
+    let sheet = MeshData::plane(WIDE_SUN_SIDE, WIDE_SUN_SIDE, 4);
+    for (facing, flip) in [("up", Quat::IDENTITY), ("down", Quat::from_rotation_x(std::f32::consts::PI))] {
+        for height in [1.0f32, 2.0] {
+            let (all, inner) = wide_sun_penumbra_errors(&gpu, &sheet, 0.0, flip, height);
+            assert!(
+                all < 0.035 && inner < 0.035,
+                "the penumbra under a sheet facing {facing} at {height} m is {all} from the disc's share in view \
+                 ({inner} under the sheet)"
+            );
+        }
+    }
+}
+
+/// Side of the square blocker in the wide-sun tests.
+const WIDE_SUN_SIDE: f32 = 3.0;
+
+/// Bakes `blocker` (turned by `flip`, then 30° about the vertical) at
+/// `height` over a black ground under the 5° sun straight overhead, and
+/// returns the mean |ground value − share of the disc in view| over its
+/// penumbra texels along the edges: all of them, and those under it.
+fn wide_sun_penumbra_errors(gpu: &Gpu, blocker: &MeshData, thickness: f32, flip: Quat, height: f32) -> (f32, f32) {
     let cos_alpha = 5f32.to_radians().cos();
     let sun = EnvironmentMap::from_fn(2048, 1024, |d| if d[1] >= cos_alpha { [100.0; 3] } else { [0.0; 3] });
     let mut lights = common::lights(&sun, LightMode::Budget { count: 32 });
@@ -211,55 +247,48 @@ fn a_wide_suns_penumbra_follows_the_share_of_its_disc_in_view() {
 
     let turn = Quat::from_rotation_y(30f32.to_radians());
     let local = |p: Vec3| turn.inverse() * p;
-    let (side, thickness) = (3.0f32, 0.02f32);
     let in_view = |d: f32| {
         let d = d.clamp(-1.0, 1.0);
         0.5 + (d * (1.0 - d * d).sqrt() + d.asin()) / std::f32::consts::PI
     };
-    for height in [1.0f32, 2.0] {
-        let mut builder = SceneBuilder::new();
-        builder.object("ground", &MeshData::plane(6.0, 6.0, 4), [0.0, 0.0, 0.0, 1.0], [0.0; 3], Placement::default());
-        builder.object(
-            "slab",
-            &MeshData::cuboid([side, thickness, side]),
-            [0.0, 0.0, 0.0, 1.0],
-            [0.0; 3],
-            Placement::at(Vec3::Y * height).rotated(turn),
-        );
-        let baked = common::bake(&gpu, &builder, &lights, &common::options(256));
-        let ground = common::values_of(&baked, 0);
-        let open =
-            ground.iter().filter(|(t, _)| local(t.position()).xz().length() > 2.6).map(|v| v.1).fold(0.0, f32::max);
-        // Penumbra texels: all of them, and those under the slab.
-        let (mut all, mut inner) = (Vec::new(), Vec::new());
-        for (t, value) in &ground {
-            // Along the slab's edges, away from its corners.
-            let q = local(t.position()).xz().abs();
-            if q.min_element() > side / 2.0 - 0.5 {
-                continue;
-            }
-            let x = q.max_element() - side / 2.0;
-            let edge = height + if x > 0.0 { thickness } else { -thickness } / 2.0;
-            let expected = in_view((x / edge).atan() / alpha);
-            if expected > 0.02 && expected < 0.98 {
-                let error = (value / open - expected).abs();
-                all.push(error);
-                if x < 0.0 {
-                    inner.push(error);
-                }
+    let mut builder = SceneBuilder::new();
+    builder.object("ground", &MeshData::plane(6.0, 6.0, 4), [0.0, 0.0, 0.0, 1.0], [0.0; 3], Placement::default());
+    builder.object(
+        "blocker",
+        blocker,
+        [0.0, 0.0, 0.0, 1.0],
+        [0.0; 3],
+        Placement::at(Vec3::Y * height).rotated(turn * flip),
+    );
+    let baked = common::bake(gpu, &builder, &lights, &common::options(256));
+    let ground = common::values_of(&baked, 0);
+    let open = ground.iter().filter(|(t, _)| local(t.position()).xz().length() > 2.6).map(|v| v.1).fold(0.0, f32::max);
+    // Penumbra texels: all of them, and those under the blocker.
+    let (mut all, mut inner) = (Vec::new(), Vec::new());
+    for (t, value) in &ground {
+        // Along the blocker's edges, away from its corners.
+        let q = local(t.position()).xz().abs();
+        if q.min_element() > WIDE_SUN_SIDE / 2.0 - 0.5 {
+            continue;
+        }
+        let x = q.max_element() - WIDE_SUN_SIDE / 2.0;
+        let edge = height + if x > 0.0 { thickness } else { -thickness } / 2.0;
+        let expected = in_view((x / edge).atan() / alpha);
+        if expected > 0.02 && expected < 0.98 {
+            let error = (value / open - expected).abs();
+            all.push(error);
+            if x < 0.0 {
+                inner.push(error);
             }
         }
-        let mean = |e: &[f32]| e.iter().sum::<f32>() / e.len().max(1) as f32;
-        let (mean_all, mean_inner) = (mean(&all), mean(&inner));
-        eprintln!(
-            "slab at {height} m: {} penumbra texels, mean |value − share in view| {mean_all:.4} ({mean_inner:.4} under \
-             the slab)",
-            all.len()
-        );
-        assert!(all.len() >= 100, "only {} texels in the penumbra", all.len());
-        assert!(
-            mean_all < 0.035,
-            "the penumbra under a slab at {height} m is {mean_all} from the disc's share in view"
-        );
     }
+    let mean = |e: &[f32]| e.iter().sum::<f32>() / e.len().max(1) as f32;
+    let (mean_all, mean_inner) = (mean(&all), mean(&inner));
+    eprintln!(
+        "blocker at {height} m: {} penumbra texels, mean |value − share in view| {mean_all:.4} ({mean_inner:.4} under \
+         it)",
+        all.len()
+    );
+    assert!(all.len() >= 100, "only {} texels in the penumbra", all.len());
+    (mean_all, mean_inner)
 }

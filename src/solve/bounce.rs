@@ -611,7 +611,7 @@ fn resources(
         ),
         depth_view: depth.create_view(&Default::default()),
         front_view: front.create_view(&Default::default()),
-        casters: Casters::new(gpu, scene),
+        casters: Casters::new(gpu, scene, false),
     }
 }
 

@@ -9,6 +9,7 @@ use std::ops::Range;
 
 use bytemuck::{Pod, Zeroable};
 
+use super::surfaces;
 use crate::gpu::{self, Gpu, Materials};
 use crate::scene::Scene;
 
@@ -20,13 +21,16 @@ struct CasterVertex {
     material: u32,
     uv0: [f32; 2],
     uv1: [f32; 2],
+    /// 1 where the vertex lies on an open surface (`surfaces`), or on a
+    /// cut-out material's: a sheet, not a solid's skin.
+    sheet: u32,
 }
 
 /// The vertex layout every caster pipeline uses.
 pub const VERTEX_LAYOUT: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayout {
     array_stride: std::mem::size_of::<CasterVertex>() as u64,
     step_mode: wgpu::VertexStepMode::Vertex,
-    attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Uint32, 2 => Float32x2, 3 => Float32x2],
+    attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Uint32, 2 => Float32x2, 3 => Float32x2, 4 => Uint32],
 };
 
 /// The scene's casters on the GPU, with the materials their cut-outs need.
@@ -40,7 +44,9 @@ pub struct Casters {
 }
 
 impl Casters {
-    pub fn new(gpu: &Gpu, scene: &Scene) -> Casters {
+    /// `sheets`: mark the vertices on open surfaces (`surfaces`), which
+    /// only the direct pass's depth maps read.
+    pub fn new(gpu: &Gpu, scene: &Scene, sheets: bool) -> Casters {
         let materials = Materials::upload(gpu, scene);
         let default_material = scene.materials.len();
         let mut vertices = Vec::new();
@@ -54,6 +60,7 @@ impl Casters {
                     material: material as u32,
                     uv0: primitive.uv0.as_ref().map_or([0.0; 2], |uv| uv[i]),
                     uv1: primitive.uv1.as_ref().map_or([0.0; 2], |uv| uv[i]),
+                    sheet: 0,
                 });
             }
             let target = if materials.is_masked(material) { &mut masked } else { &mut opaque };
@@ -61,6 +68,15 @@ impl Casters {
             // depth maps mark surfaces the light sees from behind.
             for t in 0..primitive.triangle_count() {
                 target.extend(primitive.front_corners(t).map(|i| i + base));
+            }
+        }
+        if sheets {
+            let positions: Vec<[f32; 3]> = vertices.iter().map(|v| v.position).collect();
+            for (vertex, open) in vertices.iter_mut().zip(surfaces::open_vertices(&positions, &opaque)) {
+                vertex.sheet = open as u32;
+            }
+            for &i in &masked {
+                vertices[i as usize].sheet = 1;
             }
         }
         let (opaque_count, masked_count) = (opaque.len() as u32, masked.len() as u32);

@@ -192,7 +192,7 @@ pub fn run(
         _pad: [0; 3],
     };
 
-    let casters = Casters::new(gpu, scene);
+    let casters = Casters::new(gpu, scene, true);
 
     let params_buffer = gpu.uniform_buffer("solve_direct params", &params);
     let lights_buffer = gpu.uniform_buffer("solve_direct lights", &[DirectLight::default(); MAX_BATCH as usize]);

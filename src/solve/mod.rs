@@ -12,6 +12,7 @@ mod casters;
 pub mod direct;
 pub mod patches;
 pub mod supersample;
+mod surfaces;
 
 use anyhow::Result;
 use serde::{Deserialize, Serialize};
