@@ -360,11 +360,11 @@ fn behind_sheet(cell: vec2<i32>, centre: vec2f, r: Receiver, z: f32, back: f32, 
     if (z <= surface - band) {
         return true;
     }
-    let on_plane = on_receiver_plane(vec2f(cell), back, n, r);
-    if (!on_sheet(back)) {
-        return z <= surface + band && on_plane;
+    // Beyond the band: open space behind a sheet, inside a closed surface.
+    if (z > surface + band) {
+        return on_sheet(back);
     }
-    return z > surface + band || on_plane;
+    return on_receiver_plane(vec2f(cell), back, n, r);
 }
 
 // How much of a distant light of angular radius atan(tan_alpha) reaches the

@@ -1,7 +1,7 @@
 //! Which caster triangles lie on an open surface (a sheet: a wall or floor
 //! of zero thickness, a leaf) and which on a closed one (a solid's skin, or
 //! a sealed room of inward-facing walls). The depth maps mark the former,
-//! so that the direct pass can treat a sheet the light sees from behind as
+//! so that the direct pass lets shadow rays through the open space behind
 //! a sheet, while the space inside a closed surface stays sealed.
 //!
 //! Triangles connect through shared positions (welded within millionths of
