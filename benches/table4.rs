@@ -734,6 +734,7 @@ fn bounce_scaling(gpu: &Gpu) -> Result<()> {
             gpu,
             &scene,
             &texels,
+            None,
             &patches,
             &mut lightmap,
             None,

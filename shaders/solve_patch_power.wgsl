@@ -21,6 +21,9 @@
 // Per shooter slot k and sub-cell c of its patch: at k·2·SUB_CELL_COUNT + c
 // (Σ ΔL·A rgb, Σ A), at SUB_CELL_COUNT further the area centroid.
 @group(0) @binding(8) var<storage, read_write> shooter_cells: array<vec4f>;
+// Per texel: the share of its area that bounces light (src/solve/overlaps.rs):
+// its unshot light counts for that share of its area.
+@group(0) @binding(9) var<storage, read> shares: array<f32>;
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -37,9 +40,10 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         let i = members[own.first + m];
         let u = unshot[i];
         let texel = texels[i];
-        power += u.rgb * texel.area;
+        let area = texel.area * shares[i];
+        power += u.rgb * area;
         received += u.w;
-        let w = luminance(u.rgb) * texel.area;
+        let w = luminance(u.rgb) * area;
         weighted += w * texel.position;
         weight += w;
     }
@@ -76,7 +80,9 @@ fn shooter_cells_of_batch(@builtin(workgroup_id) group: vec3<u32>, @builtin(loca
             let i = members[own.first + m];
             let texel = texels[i];
             if (sub_cell(texel) == c) {
-                power += unshot[i].rgb * texel.area;
+                // Light by the bouncing area, over the whole area: a sub-cell
+                // where two surfaces coincide has half the radiance of each.
+                power += unshot[i].rgb * texel.area * shares[i];
                 area += texel.area;
                 centroid += texel.position * texel.area;
             }

@@ -48,6 +48,10 @@
 
 // Each shooter's unshot light by sub-cells of its patch (solve_patch_power.wgsl).
 @group(0) @binding(11) var<storage, read> shooter_cells: array<vec4f>;
+// Per texel: the share of its area that bounces light (1 unless another
+// surface lies on or over it; src/solve/overlaps.rs). Where two surfaces
+// coincide, each receives the place's light but counts for half its area.
+@group(0) @binding(13) var<storage, read> shares: array<f32>;
 
 struct NearList {
     count: atomic<u32>,
@@ -305,7 +309,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_
     if (shot) {
         remaining = vec3f(0.0);
     }
-    unshot[i] = vec4f(remaining + texel.albedo * gathered, luminance(gathered) * texel.area);
+    unshot[i] = vec4f(remaining + texel.albedo * gathered, luminance(gathered) * texel.area * shares[i]);
     if (near_slots != 0u) {
         near_list.entries[atomicAdd(&near_list.count, 1u)] = vec2<u32>(i, near_slots);
     }
@@ -370,7 +374,7 @@ fn near_field(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgro
         gathered += near_form_factor(texel, s) * near_radiance(texel, s, k);
     }
     lightmap[i] += vec4f(gathered, 0.0);
-    unshot[i] += vec4f(texel.albedo * gathered, luminance(gathered) * texel.area);
+    unshot[i] += vec4f(texel.albedo * gathered, luminance(gathered) * texel.area * shares[i]);
 }
 
 var<workgroup> sums: array<f32, 64>;
@@ -417,7 +421,7 @@ fn measure(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
     for (var i = first + lid; i < min(first + MEASURE_CHUNK, params.texel_count); i += 64u) {
         if (texel_patch[i] != s.patch_index) {
             let texel = texels[i];
-            sum += shot_form_factor(texel, s, k) * texel.area;
+            sum += shot_form_factor(texel, s, k) * texel.area * shares[i];
         }
     }
     sum /= max(s.area, 1e-30);

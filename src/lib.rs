@@ -435,6 +435,13 @@ fn scene_report(
                         .into(),
                 },
                 report::Fixup {
+                    stage: "overlap".into(),
+                    texels: baked.solution.overlapped,
+                    what: "texels another surface lies on (facing the same way) or just over: they bounce their \
+                           place's light once between them, not once each"
+                        .into(),
+                },
+                report::Fixup {
                     stage: "dilation".into(),
                     texels: exported.dilated_texels,
                     what: "padding texels filled from their own chart, so bilinear filtering reads no black".into(),

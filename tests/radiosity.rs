@@ -119,6 +119,44 @@ fn closed_room_with_one_emitting_wall_keeps_the_mean() {
     }
 }
 
+#[test]
+fn a_floor_laid_twice_or_just_over_itself_glows_and_reflects_once() {
+    // A copy of the floor in the floor's plane, or a centimetre over it (a
+    // fifth of a texel): the place still emits Le and reflects ρ once, as a
+    // path that meets one of the two surfaces there sees, so the closed room
+    // still reaches L = Le/(1 − ρ) on every surface. Counting both floors in
+    // full left them 10 % dark and the ceiling 5 % bright; the hidden floor,
+    // taking light it never gave back, left the room 44 % dark.
+    let rho = 0.8f32;
+    let expected = 1.0 / (1.0 - rho as f64);
+    for lift in [0.0f32, 0.01] {
+        let mut builder = room([(rho, 1.0); 6]);
+        builder.object(
+            "floor over the floor",
+            &MeshData::plane(2.0, 2.0, 3),
+            [rho, rho, rho, 1.0],
+            [1.0; 3],
+            Placement::at(Vec3::new(0.0, -1.0 + lift, 0.0)),
+        );
+        let baked = bake_emitters(&builder, 96, |_| {});
+        let texel_size = 1.0 / baked.atlas.texels_per_unit;
+        assert!(lift < 0.25 * texel_size, "the lift, {lift} m, is under a texel of {texel_size} m");
+        // In the room's floor's plane, both floors are seen; over it, the room's floor is hidden.
+        let seen: &[u32] = if lift == 0.0 { &[0, 1, 2, 3, 4, 5, 6] } else { &[1, 2, 3, 4, 5, 6] };
+        let bounce = baked.solution.bounce.as_ref().expect("the bounce pass ran");
+        let means: Vec<f64> =
+            seen.iter().map(|&p| area_mean(&baked, &[p], |i| baked.solution.lightmap[i][0])).collect();
+        eprintln!(
+            "lift {lift} m: {} texels overlapped, {} shots ({}): mean L_lm by surface {means:.4?}, expected {expected:.4}",
+            baked.solution.overlapped, bounce.shots, bounce.stopped_by
+        );
+        for (&p, mean) in seen.iter().zip(&means) {
+            assert!((mean / expected - 1.0).abs() < 0.015, "lift {lift} m: surface {p}'s mean {mean} vs {expected}");
+        }
+        assert!(baked.solution.overlapped > 0);
+    }
+}
+
 /// Mean L_lm over a black receiving unit square facing an emitting unit
 /// square of radiance 1 placed by `emitter`: the form factor F(receiver → emitter).
 fn form_factor(emitter: Placement) -> f64 {

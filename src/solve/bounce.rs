@@ -37,7 +37,7 @@ use super::casters::Casters;
 use super::patches::Patches;
 use crate::gpu::{self, Gpu, Shader, read_buffer};
 use crate::scene::Scene;
-use crate::texelize::TexelSet;
+use crate::texelize::{Texel, TexelSet};
 
 /// Shooter slots per batch (`MAX_SHOOTERS` in solve_shoot.wgsl): a near-field
 /// receiver lists the slots it is near as bits of one u32.
@@ -229,6 +229,8 @@ fn luminance(c: [f64; 3]) -> f64 {
 struct Resources {
     params: wgpu::Buffer,
     texels: wgpu::Buffer,
+    /// Per texel: the share of its area that bounces light (`overlaps`).
+    shares: wgpu::Buffer,
     texel_patch: wgpu::Buffer,
     patches: wgpu::Buffer,
     members: wgpu::Buffer,
@@ -279,6 +281,7 @@ pub fn run(
     gpu: &Gpu,
     scene: &Scene,
     texels: &TexelSet,
+    shares: Option<&[f32]>,
     patches: &Patches,
     lightmap: &mut [[f32; 3]],
     coverage: Option<&[f32]>,
@@ -287,6 +290,16 @@ pub fn run(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<BounceStats> {
     let start = Instant::now();
+    // The GPU weighs each texel's unshot light and what it receives by its
+    // share of the area that bounces (`overlaps`); the sums here weigh them
+    // by the same areas.
+    let gpu_texels = texels;
+    let weighted = shares.map(|shares| TexelSet {
+        texels: texels.texels.iter().zip(shares).map(|(t, s)| Texel { area: t.area * s, ..*t }).collect(),
+        ..*texels
+    });
+    let texels = weighted.as_ref().unwrap_or(texels);
+    let shares = shares.map_or_else(|| vec![1.0f32; texels.texels.len()], <[f32]>::to_vec);
     // Initial unshot radiosity: reflected direct light plus emission.
     let unshot: Vec<[f32; 4]> = texels
         .texels
@@ -350,7 +363,8 @@ pub fn run(
     };
     let patch_params = BounceParams { row_stride: patch_groups_x * 64, ..params };
 
-    let resources = resources(gpu, scene, texels, patches, &unshot, lightmap, params, face, tiles_per_row, tile_rows);
+    let resources =
+        resources(gpu, scene, gpu_texels, &shares, patches, &unshot, lightmap, params, face, tiles_per_row, tile_rows);
     // Without a direct pass (emitters only) the share is unknown: normalize.
     let normalized = initial_closure.is_none_or(|f| f * luminance(mean_albedo) >= NORMALIZE_FROM);
     if !normalized {
@@ -561,6 +575,7 @@ fn resources(
     gpu: &Gpu,
     scene: &Scene,
     texels: &TexelSet,
+    shares: &[f32],
     patches: &Patches,
     unshot: &[[f32; 4]],
     lightmap: &[[f32; 3]],
@@ -576,6 +591,7 @@ fn resources(
     Resources {
         params: gpu.uniform_buffer("solve_shoot params", &params),
         texels: gpu.storage_buffer("solve_shoot texels", &texels.texels, none),
+        shares: gpu.storage_buffer("solve_shoot shares", shares, none),
         texel_patch: gpu.storage_buffer("solve_shoot texel patches", &patches.texel_patch, none),
         patches: gpu.storage_buffer("solve_select patches", &patches.patches, none),
         members: gpu.storage_buffer("solve_patch_power members", &patches.members, none),
@@ -637,6 +653,8 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             // 7: the batch's shooters, 8: their light by sub-cells (written)
             gpu::storage_entry(7, true, compute),
             gpu::storage_entry(8, false, compute),
+            // 9: each texel's share of the area that bounces
+            gpu::storage_entry(9, true, compute),
         ],
     );
     let power_group = gpu::bind_buffers(
@@ -653,6 +671,7 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             &r.patch_origin,
             &r.shooters,
             &r.shooter_cells,
+            &r.shares,
         ],
     );
 
@@ -725,8 +744,9 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             gpu::texture_2d_entry(9, compute, wgpu::TextureSampleType::Float { filterable: false }),
             // 10: receivers in a shooter's near field (listed, then gathered)
             gpu::storage_entry(10, false, compute),
-            // 11: the shooters' light by sub-cells
+            // 11: the shooters' light by sub-cells, 13: each texel's share of the area that bounces
             gpu::storage_entry(11, true, compute),
+            gpu::storage_entry(13, true, compute),
         ],
     );
     let shoot_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -745,6 +765,7 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             wgpu::BindGroupEntry { binding: 9, resource: wgpu::BindingResource::TextureView(&r.front_view) },
             wgpu::BindGroupEntry { binding: 10, resource: r.near_list.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 11, resource: r.shooter_cells.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 13, resource: r.shares.as_entire_binding() },
         ],
     });
 

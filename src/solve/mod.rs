@@ -10,6 +10,7 @@
 pub mod bounce;
 mod casters;
 pub mod direct;
+mod overlaps;
 pub mod patches;
 pub mod supersample;
 mod surfaces;
@@ -53,6 +54,9 @@ pub struct Solution {
     /// Texels whose direct light is the mean over sub-samples of their
     /// footprint (`supersample`).
     pub supersampled: usize,
+    /// Texels another surface lies on or just over (`overlaps`): they bounce
+    /// a share of their light, or none.
+    pub overlapped: usize,
     /// Passes left out and why, for the report.
     pub skipped: Vec<Skipped>,
 }
@@ -115,16 +119,23 @@ pub fn run(
         skip(&mut skipped, "emission", "no surface is emissive");
     }
     let mut bounce_stats = None;
+    let mut overlapped = 0;
     if !emitters && !reflects {
         skip(&mut skipped, "bounce", "no light to bounce: the surfaces are black or unlit");
     } else if !sees_itself {
         skip(&mut skipped, "bounce", "no surface sees another (every texel sees open sky in every direction)");
     } else {
-        let patches = patches::build(texels, options.bounce.patches, 1.0 / texels_per_unit.max(1e-30));
+        let texel_size = 1.0 / texels_per_unit.max(1e-30);
+        let patches = patches::build(texels, options.bounce.patches, texel_size);
+        // Overlapping surfaces bounce the light of their place once between
+        // them: the bounce pass weighs each texel by its share of the area.
+        let shares = overlaps::bounce_shares(scene, texels, texel_size);
+        overlapped = shares.as_ref().map_or(0, |s| s.iter().filter(|&&s| s < 1.0).count());
         let stats = bounce::run(
             gpu,
             scene,
             texels,
+            shares.as_deref(),
             &patches,
             &mut lightmap,
             coverage.as_deref(),
@@ -134,7 +145,7 @@ pub fn run(
         )?;
         bounce_stats = Some(stats);
     }
-    Ok(Solution { lightmap, direct: direct_stats, bounce: bounce_stats, supersampled, skipped })
+    Ok(Solution { lightmap, direct: direct_stats, bounce: bounce_stats, supersampled, overlapped, skipped })
 }
 
 /// The direct pass with the supersample fix-up when it is asked for, and how

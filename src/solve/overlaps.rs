@@ -1,0 +1,148 @@
+//! Surfaces that lie on or just over one another, facing the same way: a
+//! floor laid exactly on the ground, an object exported twice in separate
+//! primitives, a slab a centimetre over the ground. The depth maps cannot
+//! tell such surfaces apart, so each gets the place's light, and in the
+//! bounce pass each reflected it: light left that place once per surface
+//! (an open box standing on the ground came out 1.26× the reference inside).
+//! A path meets one surface there. So each texel gets the share of its area
+//! that bounces light:
+//! - 1 where no other surface covers its position;
+//! - 1/k where k surfaces lie in its plane over its position;
+//! - 0 where another lies in front of it within a texel: it is hidden.
+//!
+//! Its lightmap value is left alone (a coincident surface does get the light;
+//! a hidden one's value is never seen).
+
+use std::collections::HashMap;
+
+use glam::{IVec3, Vec3};
+use rayon::prelude::*;
+
+use crate::scene::{AlphaMode, Scene};
+use crate::texelize::TexelSet;
+
+/// Two triangles face the same way when their normals are within about 2°.
+const SAME_FACING_COS: f32 = 0.9995;
+
+/// A covering triangle: its corners wound counter-clockwise about `normal`.
+struct Cover {
+    corners: [Vec3; 3],
+    normal: Vec3,
+}
+
+/// Each texel's share of its area that bounces light (see the module
+/// comment), or `None` when no surface covers another anywhere.
+/// `texel_size` is the atlas's texel spacing in metres.
+pub fn bounce_shares(scene: &Scene, texels: &TexelSet, texel_size: f32) -> Option<Vec<f32>> {
+    let covers = covering_triangles(scene);
+    let (lo, hi) = scene.bounds()?;
+    // Coincident: within millionths of the scene's size (rounding of node
+    // transforms); inside a triangle: at least that far from its edges, so
+    // that a texel on an edge its own mesh shares is not covered by the
+    // triangle beyond it.
+    let tolerance = (1e-5 * (hi - lo).length()).max(f32::MIN_POSITIVE);
+    let hidden_within = texel_size.max(tolerance);
+    let largest = texels.texels.iter().map(|t| t.area).fold(0.0f32, f32::max).sqrt();
+    // A covering triangle has a texel within this of the covered position.
+    let reach = 1.5 * texel_size.max(largest) + hidden_within;
+    let grid = Grid::new(texels.texels.iter().map(|t| Vec3::from(t.position)), reach);
+
+    let shares: Vec<f32> = texels
+        .texels
+        .par_iter()
+        .map(|t| {
+            if t.area <= 0.0 || covers[t.triangle as usize].is_none() {
+                return 1.0;
+            }
+            let (p, n) = (Vec3::from(t.position), Vec3::from(t.face_normal));
+            let mut seen: Vec<u32> = Vec::new();
+            let mut coincident = 1;
+            for j in grid.near(p) {
+                let u = texels.texels[j as usize].triangle;
+                if u == t.triangle || seen.contains(&u) {
+                    continue;
+                }
+                seen.push(u);
+                let Some(cover) = &covers[u as usize] else { continue };
+                if cover.normal.dot(n) < SAME_FACING_COS {
+                    continue;
+                }
+                // In the texel's plane, a triangle that merely meets its own
+                // at the texel (a neighbour in its mesh) does not cover it;
+                // in front of it, one whose edge passes over it does.
+                let ahead = cover.normal.dot(cover.corners[0] - p);
+                if ahead.abs() <= tolerance && cover.holds(p, tolerance) {
+                    coincident += 1;
+                } else if ahead > tolerance && ahead <= hidden_within && cover.holds(p, -tolerance) {
+                    return 0.0;
+                }
+            }
+            1.0 / coincident as f32
+        })
+        .collect();
+    shares.iter().any(|&s| s < 1.0).then_some(shares)
+}
+
+impl Cover {
+    /// Whether `p`, projected onto the triangle's plane, lies inside it at
+    /// least `margin` from every edge.
+    fn holds(&self, p: Vec3, margin: f32) -> bool {
+        let [a, b, c] = self.corners;
+        [(a, b), (b, c), (c, a)].iter().all(|&(from, to)| {
+            let inward = self.normal.cross(to - from).normalize_or_zero();
+            inward.dot(p - from) >= margin
+        })
+    }
+}
+
+/// Every triangle that hides what lies behind it, by the texels' global
+/// triangle id (primitives in order, repeated triangles left out), or
+/// `None`: alpha-MASK triangles (light passes their holes) and triangles
+/// without area.
+fn covering_triangles(scene: &Scene) -> Vec<Option<Cover>> {
+    let mut covers = Vec::new();
+    for primitive in &scene.primitives {
+        let cut_out = matches!(scene.material(primitive).alpha, AlphaMode::Mask(_));
+        let repeat = crate::repeats::mask(&primitive.repeats, primitive.triangle_count());
+        for t in (0..primitive.triangle_count()).filter(|&t| !repeat[t]) {
+            let normal = primitive.face_normal(t);
+            let corners = primitive.front_corners(t).map(|i| Vec3::from(primitive.positions[i as usize]));
+            covers.push((!cut_out && normal != Vec3::ZERO).then_some(Cover { corners, normal }));
+        }
+    }
+    covers
+}
+
+/// Points hashed into cubes twice `reach` wide: those within `reach` of a
+/// position lie in the 2×2×2 cubes nearest it.
+struct Grid {
+    cell: f32,
+    order: Vec<u32>,
+    ranges: HashMap<IVec3, (u32, u32)>,
+}
+
+impl Grid {
+    fn new(points: impl Iterator<Item = Vec3>, reach: f32) -> Grid {
+        let cell = 2.0 * reach;
+        let mut keyed: Vec<(IVec3, u32)> =
+            points.enumerate().map(|(i, p)| ((p / cell).floor().as_ivec3(), i as u32)).collect();
+        keyed.sort_unstable_by_key(|&(k, i)| (k.x, k.y, k.z, i));
+        let mut ranges = HashMap::new();
+        let mut start = 0;
+        for run in keyed.chunk_by(|a, b| a.0 == b.0) {
+            ranges.insert(run[0].0, (start as u32, (start + run.len()) as u32));
+            start += run.len();
+        }
+        Grid { cell, order: keyed.into_iter().map(|(_, i)| i).collect(), ranges }
+    }
+
+    /// Every point within `reach` of `p`, and some further.
+    fn near(&self, p: Vec3) -> impl Iterator<Item = u32> + '_ {
+        let first = (p / self.cell - 0.5).floor().as_ivec3();
+        (0..8).flat_map(move |k| {
+            let key = first + IVec3::new(k & 1, (k >> 1) & 1, k >> 2);
+            let (a, b) = self.ranges.get(&key).copied().unwrap_or((0, 0));
+            self.order[a as usize..b as usize].iter().copied()
+        })
+    }
+}
