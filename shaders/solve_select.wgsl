@@ -11,30 +11,38 @@
 @group(0) @binding(4) var<storage, read_write> shooters: array<Shooter>;
 @group(0) @binding(5) var<storage, read_write> stats: BounceStats;
 @group(0) @binding(6) var<storage, read> patch_origin: array<vec4f>;
+// Per patch: how much of its texels' hemispheres the scene covers (1
+// without a direct pass): an upper bound of the share of its light that lands.
+@group(0) @binding(7) var<storage, read> patch_coverage: array<f32>;
 
 const THREADS: u32 = 256u;
 var<workgroup> best_power: array<f32, THREADS>;
 var<workgroup> best_index: array<u32, THREADS>;
 var<workgroup> sum_unshot: array<vec3f, THREADS>;
 var<workgroup> sum_received: array<f32, THREADS>;
+var<workgroup> sum_landing: array<f32, THREADS>;
 
 @compute @workgroup_size(256)
 fn main(@builtin(local_invocation_index) lid: u32) {
     var unshot = vec3f(0.0);
     var received = 0.0;
+    var landing = 0.0;
     for (var j = lid; j < params.patch_count; j += THREADS) {
         chosen[j] = 0u;
         unshot += patch_power[j].rgb;
         received += patch_power[j].w;
+        landing += luminance(patch_power[j].rgb) * patch_coverage[j];
     }
     sum_unshot[lid] = unshot;
     sum_received[lid] = received;
+    sum_landing[lid] = landing;
     storageBarrier();
     workgroupBarrier();
     for (var stride = THREADS / 2u; stride > 0u; stride /= 2u) {
         if (lid < stride) {
             sum_unshot[lid] += sum_unshot[lid + stride];
             sum_received[lid] += sum_received[lid + stride];
+            sum_landing[lid] += sum_landing[lid + stride];
         }
         workgroupBarrier();
     }
@@ -102,6 +110,7 @@ fn main(@builtin(local_invocation_index) lid: u32) {
     if (lid == 0u) {
         stats.unshot = vec4f(sum_unshot[0], luminance(sum_unshot[0]));
         stats.received = vec4f(0.0, 0.0, 0.0, sum_received[0]);
+        stats.landing = sum_landing[0];
         stats.shot = vec4f(shot, luminance(shot));
         stats.shooters = count;
     }

@@ -12,6 +12,17 @@
 //! comes back per batch, to decide whether to stop and to record the
 //! convergence trace.
 //!
+//! It has converged when what the unshot light could still land (each
+//! patch's unshot power times how much of its texels' hemispheres the scene
+//! covers) is under the tolerance of what the light put in lands. Against
+//! the power put in alone, a sunlit scene (most of whose light leaves for
+//! the sky) stopped while a room seen through an opening still held much of
+//! its own light, and the ambient term, spread over the whole scene, put
+//! little of it back there.
+//!
+//! Overlapping surfaces (`overlaps`) count for their share of the area: in
+//! the unshot power, in the form-factor sums and in the received power.
+//!
 //! The first time a patch shoots, its form factors are normalized: the
 //! `measure` and `finish` entry points of `solve_shoot` sum them over every
 //! receiver, near and far field apart, and scale its far-field ones from
@@ -64,7 +75,9 @@ const FRONT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 /// Options of the bounce pass, with their defaults.
 #[derive(Clone, Debug)]
 pub struct BounceOptions {
-    /// Stop when the unshot power falls below this fraction of the power put in.
+    /// Stop when what the unshot light could still land (each patch's unshot
+    /// power times its coverage) falls below this fraction of what the light
+    /// put in lands (the power put in times the share of shot light that landed).
     pub tolerance: f64,
     /// Stop after this many shots (`None`: 64 per patch, so that even a
     /// near-white room ends; the ambient term covers what is left).
@@ -218,7 +231,8 @@ struct GpuStats {
     received: [f32; 4],
     shot: [f32; 4],
     shooters: u32,
-    _pad: [u32; 3],
+    landing: f32,
+    _pad: [u32; 2],
 }
 
 fn luminance(c: [f64; 3]) -> f64 {
@@ -233,6 +247,8 @@ struct Resources {
     shares: wgpu::Buffer,
     texel_patch: wgpu::Buffer,
     patches: wgpu::Buffer,
+    /// Per patch: the covered share of its texels' hemispheres.
+    patch_coverage: wgpu::Buffer,
     members: wgpu::Buffer,
     unshot: wgpu::Buffer,
     lightmap: wgpu::Buffer,
@@ -363,8 +379,16 @@ pub fn run(
     };
     let patch_params = BounceParams { row_stride: patch_groups_x * 64, ..params };
 
-    let resources =
-        resources(gpu, scene, gpu_texels, &shares, patches, &unshot, lightmap, params, face, tiles_per_row, tile_rows);
+    let patch_coverage = patch_coverage(texels, patches, coverage);
+    let inputs = Inputs {
+        texels: gpu_texels,
+        shares: &shares,
+        patches,
+        patch_coverage: &patch_coverage,
+        unshot: &unshot,
+        lightmap,
+    };
+    let resources = resources(gpu, scene, &inputs, params, face, tiles_per_row, tile_rows);
     // Without a direct pass (emitters only) the share is unknown: normalize.
     let normalized = initial_closure.is_none_or(|f| f * luminance(mean_albedo) >= NORMALIZE_FROM);
     if !normalized {
@@ -416,7 +440,12 @@ pub fn run(
         probe_seconds += probe_start.elapsed().as_secs_f64();
         trace.push(TracePoint { seconds, shots, unshot_fraction, error_estimate, reference_error });
 
-        if unshot_fraction <= options.tolerance || stats.shooters == 0 {
+        // Converged when what the unshot light could still land is a
+        // `tolerance` share of what the light put in lands: a room seen
+        // through an opening in a sunlit scene, where little of the light
+        // put in lands, is shot until its own light has settled.
+        let settled = stats.landing as f64 / (power_in * measured_closure(received_total, shot_total)).max(1e-300);
+        if settled <= options.tolerance || stats.shooters == 0 {
             break;
         }
         if shots >= max_shots {
@@ -459,7 +488,7 @@ pub fn run(
         batches += 1;
         // Progress in "orders of magnitude converged" towards the tolerance.
         let goal = (1.0 / options.tolerance.max(1e-12)).ln();
-        let done = ((1.0 / unshot_fraction.max(1e-300)).ln() / goal * 1000.0).clamp(0.0, 1000.0);
+        let done = ((1.0 / settled.max(1e-300)).ln() / goal * 1000.0).clamp(0.0, 1000.0);
         progress(done as u64, 1000);
     }
 
@@ -551,6 +580,30 @@ fn covered_share(texels: &TexelSet, unshot: &[[f32; 4]], coverage: &[f32]) -> f6
     if total > 0.0 { covered / total } else { 0.0 }
 }
 
+/// Each patch's area-weighted share of its texels' hemispheres the scene
+/// covers (the direct pass's), or 1 for every patch without it.
+fn patch_coverage(texels: &TexelSet, patches: &Patches, coverage: Option<&[f32]>) -> Vec<f32> {
+    let Some(coverage) = coverage else {
+        return vec![1.0; patches.patches.len().max(1)];
+    };
+    let mut shares: Vec<f32> = patches
+        .patches
+        .iter()
+        .map(|p| {
+            let members = &patches.members[p.first as usize..(p.first + p.count) as usize];
+            let (mut covered, mut area) = (0.0f64, 0.0f64);
+            for &i in members {
+                let a = texels.texels[i as usize].area as f64;
+                covered += coverage[i as usize] as f64 * a;
+                area += a;
+            }
+            if area > 0.0 { (covered / area) as f32 } else { 0.0 }
+        })
+        .collect();
+    shares.resize(shares.len().max(1), 0.0);
+    shares
+}
+
 /// The share of shot power that landed on the scene so far (1 before any
 /// shot: a closed room is the cautious guess).
 fn measured_closure(received: f64, shot: f64) -> f64 {
@@ -570,20 +623,28 @@ fn ambient_term(unshot: [f32; 4], closure: f64, albedo: [f64; 3], area: f64) -> 
     })
 }
 
-#[allow(clippy::too_many_arguments)]
+/// What the bounce pass uploads once.
+struct Inputs<'a> {
+    texels: &'a TexelSet,
+    /// Per texel: the share of its area that bounces (`overlaps`).
+    shares: &'a [f32],
+    patches: &'a Patches,
+    /// Per patch: the covered share of its texels' hemispheres.
+    patch_coverage: &'a [f32],
+    unshot: &'a [[f32; 4]],
+    lightmap: &'a [[f32; 3]],
+}
+
 fn resources(
     gpu: &Gpu,
     scene: &Scene,
-    texels: &TexelSet,
-    shares: &[f32],
-    patches: &Patches,
-    unshot: &[[f32; 4]],
-    lightmap: &[[f32; 3]],
+    inputs: &Inputs,
     params: BounceParams,
     face: u32,
     tiles_per_row: u32,
     tile_rows: u32,
 ) -> Resources {
+    let Inputs { texels, shares, patches, patch_coverage, unshot, lightmap } = *inputs;
     let none = wgpu::BufferUsages::empty();
     let depth = gpu.depth_target("solve_hemicube depth", 3 * face * tiles_per_row, face * tile_rows);
     let front = gpu.render_target("solve_hemicube front", 3 * face * tiles_per_row, face * tile_rows, FRONT_FORMAT);
@@ -594,6 +655,7 @@ fn resources(
         shares: gpu.storage_buffer("solve_shoot shares", shares, none),
         texel_patch: gpu.storage_buffer("solve_shoot texel patches", &patches.texel_patch, none),
         patches: gpu.storage_buffer("solve_select patches", &patches.patches, none),
+        patch_coverage: gpu.storage_buffer("solve_select patch coverage", patch_coverage, none),
         members: gpu.storage_buffer("solve_patch_power members", &patches.members, none),
         unshot: gpu.storage_buffer("solve_shoot unshot", unshot, wgpu::BufferUsages::COPY_SRC),
         lightmap: gpu.storage_buffer("solve_shoot lightmap", &lightmap4, wgpu::BufferUsages::COPY_SRC),
@@ -686,15 +748,16 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             gpu::storage_entry(3, false, compute),
             gpu::storage_entry(4, false, compute),
             gpu::storage_entry(5, false, compute),
-            // 6: per-patch origins
+            // 6: per-patch origins, 7: per-patch coverage
             gpu::storage_entry(6, true, compute),
+            gpu::storage_entry(7, true, compute),
         ],
     );
     let select_group = gpu::bind_buffers(
         gpu,
         "solve_select",
         &select_layout,
-        &[&r.params, &r.patches, &r.patch_power, &r.chosen, &r.shooters, &r.stats, &r.patch_origin],
+        &[&r.params, &r.patches, &r.patch_power, &r.chosen, &r.shooters, &r.stats, &r.patch_origin, &r.patch_coverage],
     );
 
     let vertex = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
