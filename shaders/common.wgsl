@@ -174,7 +174,7 @@ struct BounceStats {
     received: vec4f,  // Σ received L_lm·A in the last shoot pass; w = luminance
     shot: vec4f,      // Σ ΔL·A of the shooters chosen now; w = luminance
     shooters: u32,    // shooters with power in this batch
-    landing: f32,     // Σ luminance(ΔL·A) × the patch's coverage: what the unshot light could land
+    landing: f32,     // Σ luminance(ΔL·A) × the patch's coverage: the unshot power weighted by where it can land
     _pad1: u32,
     _pad2: u32,
 }

@@ -97,9 +97,9 @@ pub struct Args {
     #[arg(long)]
     pub no_supersample: bool,
 
-    /// Stop bouncing light when what the unshot light could still land (each patch's unshot power times how much
-    /// of its hemisphere the scene covers) falls below this fraction of what the light put in lands; the rest is
-    /// added as an ambient term and reported
+    /// Stop bouncing light when the unshot power, each patch's weighted by how much of its hemisphere the scene
+    /// covers, falls below this fraction of the power put in, weighted the same way; the rest is added as an ambient
+    /// term and reported
     #[arg(long, value_name = "FRACTION", default_value_t = 0.01)]
     pub tolerance: f64,
 

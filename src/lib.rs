@@ -438,7 +438,8 @@ fn scene_report(
                     stage: "overlap".into(),
                     texels: baked.solution.overlapped,
                     what: "texels another surface lies on (facing the same way) or just over: they bounce their \
-                           place's light once between them, not once each"
+                           place's light once between them, not once each; those hidden within a texel under an \
+                           opaque one get no light"
                         .into(),
                 },
                 report::Fixup {

@@ -22,18 +22,58 @@ fn floor_under_a_box_resting_on_it_stays_dark() {
     );
     let lights = common::lights(&EnvironmentMap::constant([1.0; 3]), LightMode::Budget { count: 256 });
     let baked = common::bake(&gpu, &builder, &lights, &common::options(128));
-    let floor = common::values_of(&baked, 0);
-    let texel = 1.0 / baked.atlas.texels_per_unit;
     // Texels wholly under the box: their whole square is inside the footprint.
-    let under: Vec<f32> =
-        floor.iter().filter(|(t, _)| t.position().xz().abs().max_element() < 0.5 - texel).map(|(_, v)| *v).collect();
-    let open: Vec<f32> =
-        floor.iter().filter(|(t, _)| t.position().xz().abs().max_element() > 2.5).map(|(_, v)| *v).collect();
-    let open_mean = open.iter().sum::<f32>() / open.len() as f32;
+    let texel = 1.0 / baked.atlas.texels_per_unit;
+    let (under, open_mean) = under_and_open(&baked, 0, 0.5 - texel, 2.5);
     let worst = under.iter().cloned().fold(0.0, f32::max);
     eprintln!("{} texels under the box: brightest {worst:.4}; open floor {open_mean:.4}", under.len());
-    assert!(!under.is_empty());
     assert!(worst < 0.02 * open_mean, "a texel under the box has {worst}, the open floor {open_mean}");
+}
+
+#[test]
+fn ground_under_a_floor_a_centimetre_over_it_stays_dark() {
+    // A floor of zero thickness a centimetre over the ground (a sixth of a
+    // lightmap texel, less than a shadow-map texel): the depth maps take it
+    // for the ground's own plane, but no light reaches the ground under it.
+    let gpu = common::gpu();
+    let mut builder = SceneBuilder::new();
+    builder.object("ground", &MeshData::plane(8.0, 8.0, 4), [0.5, 0.5, 0.5, 1.0], [0.0; 3], Placement::default());
+    builder.object(
+        "floor",
+        &MeshData::plane(3.0, 3.0, 3),
+        [0.7, 0.7, 0.7, 1.0],
+        [0.0; 3],
+        Placement::at(Vec3::new(0.0, 0.01, 0.0)),
+    );
+    let sun_and_sky = EnvironmentMap::sun_and_sky([0.5, 0.6, 0.8], [0.3, 0.8, 0.5], 1e4, 1f32.to_radians());
+    let lights = common::lights(&sun_and_sky, LightMode::Budget { count: 256 });
+    let baked = common::bake(&gpu, &builder, &lights, &common::options(128));
+    let texel = 1.0 / baked.atlas.texels_per_unit;
+    assert!(0.01 < 0.25 * texel, "the gap is a small part of a texel ({texel} m)");
+    // Ground texels wholly under the floor, a texel in from its edge.
+    let (under, open) = under_and_open(&baked, 0, 1.5 - 2.0 * texel, 2.5);
+    let worst = under.iter().cloned().fold(0.0, f32::max);
+    let (_, floor) = under_and_open(&baked, 1, 0.0, 0.0);
+    eprintln!(
+        "{} ground texels under the floor: brightest {worst:.4}; open ground {open:.4}; the floor {floor:.4}; \
+         {} texels overlapped",
+        under.len(),
+        baked.solution.overlapped
+    );
+    assert!(worst < 0.01 * open, "a ground texel under the floor has {worst}, the open ground {open}");
+    // The floor itself is lit as open ground is (its light bounces off it, not off the ground under it).
+    assert!((floor / open - 1.0).abs() < 0.1, "the floor {floor}, the open ground {open}");
+}
+
+/// Lightmap values (red) of primitive `p`'s texels within `inside` of the
+/// vertical axis in x and z (none left out), and their mean beyond `outside`.
+fn under_and_open(baked: &bake::Baked, p: u32, inside: f32, outside: f32) -> (Vec<f32>, f32) {
+    let values = common::values_of(baked, p);
+    let reach = |t: &bake::texelize::Texel| t.position().xz().abs().max_element();
+    let under: Vec<f32> = values.iter().filter(|(t, _)| reach(t) < inside).map(|(_, v)| *v).collect();
+    let open: Vec<f32> = values.iter().filter(|(t, _)| reach(t) >= outside).map(|(_, v)| *v).collect();
+    assert!(!under.is_empty() || inside <= 0.0, "no texel within {inside} of the axis");
+    (under, open.iter().sum::<f32>() / open.len() as f32)
 }
 
 #[test]

@@ -12,13 +12,14 @@
 //! comes back per batch, to decide whether to stop and to record the
 //! convergence trace.
 //!
-//! It has converged when what the unshot light could still land (each
-//! patch's unshot power times how much of its texels' hemispheres the scene
-//! covers) is under the tolerance of what the light put in lands. Against
-//! the power put in alone, a sunlit scene (most of whose light leaves for
-//! the sky) stopped while a room seen through an opening still held much of
-//! its own light, and the ambient term, spread over the whole scene, put
-//! little of it back there.
+//! It has converged when the unshot power, each patch's weighted by how much
+//! of its texels' hemispheres the scene covers, is under the tolerance of
+//! the power put in, weighted the same way. Unweighted, a sunlit scene (most
+//! of whose light leaves for the sky) stopped while a room seen through an
+//! opening still held much of its own light, and the ambient term, spread
+//! over the whole scene, put little of it back there. (Against the power put
+//! in times the share of shot light that landed, a ground whose neighbours
+//! show it only their backs never converged.)
 //!
 //! Overlapping surfaces (`overlaps`) count for their share of the area: in
 //! the unshot power, in the form-factor sums and in the received power.
@@ -75,9 +76,9 @@ const FRONT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
 /// Options of the bounce pass, with their defaults.
 #[derive(Clone, Debug)]
 pub struct BounceOptions {
-    /// Stop when what the unshot light could still land (each patch's unshot
-    /// power times its coverage) falls below this fraction of what the light
-    /// put in lands (the power put in times the share of shot light that landed).
+    /// Stop when the unshot power, each patch's weighted by the share of its
+    /// texels' hemispheres the scene covers, falls below this fraction of the
+    /// power put in, weighted the same way.
     pub tolerance: f64,
     /// Stop after this many shots (`None`: 64 per patch, so that even a
     /// near-white room ends; the ambient term covers what is left).
@@ -409,6 +410,8 @@ pub fn run(
     // Time spent reading back `--reference` probes, left out of the trace's clock.
     let mut probe_seconds = 0.0f64;
     let mut last;
+    // The first batch's coverage-weighted unshot power: the light put in.
+    let mut landing_in = None;
     loop {
         // Sum and select on the GPU; read back only the totals.
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
@@ -440,11 +443,13 @@ pub fn run(
         probe_seconds += probe_start.elapsed().as_secs_f64();
         trace.push(TracePoint { seconds, shots, unshot_fraction, error_estimate, reference_error });
 
-        // Converged when what the unshot light could still land is a
-        // `tolerance` share of what the light put in lands: a room seen
-        // through an opening in a sunlit scene, where little of the light
-        // put in lands, is shot until its own light has settled.
-        let settled = stats.landing as f64 / (power_in * measured_closure(received_total, shot_total)).max(1e-300);
+        // Converged when the unshot light, each patch's weighted by how much
+        // of its hemisphere the scene covers, is a `tolerance` share of the
+        // light put in, weighted so: a room seen through an opening in a
+        // sunlit scene, where most of the light put in leaves for the sky,
+        // is shot until its own light has settled.
+        let landing_in = *landing_in.get_or_insert(stats.landing as f64);
+        let settled = if landing_in > 0.0 { stats.landing as f64 / landing_in } else { 0.0 };
         if settled <= options.tolerance || stats.shooters == 0 {
             break;
         }

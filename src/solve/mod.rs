@@ -23,6 +23,7 @@ use crate::gpu::Gpu;
 use crate::scene::Scene;
 use crate::texelize::{Texel, TexelSet};
 pub use bounce::{BounceOptions, BounceStats, TracePoint};
+use overlaps::Overlaps;
 
 /// Options of the solve, with their defaults.
 #[derive(Clone, Debug)]
@@ -55,7 +56,8 @@ pub struct Solution {
     /// footprint (`supersample`).
     pub supersampled: usize,
     /// Texels another surface lies on or just over (`overlaps`): they bounce
-    /// a share of their light, or none.
+    /// a share of their light, or none (and those hidden under an opaque
+    /// surface get none).
     pub overlapped: usize,
     /// Passes left out and why, for the report.
     pub skipped: Vec<Skipped>,
@@ -119,23 +121,22 @@ pub fn run(
         skip(&mut skipped, "emission", "no surface is emissive");
     }
     let mut bounce_stats = None;
-    let mut overlapped = 0;
+    // Surfaces on or just over one another (`overlaps`).
+    let texel_size = 1.0 / texels_per_unit.max(1e-30);
+    let overlaps = overlaps::find(scene, texels, texel_size);
     if !emitters && !reflects {
         skip(&mut skipped, "bounce", "no light to bounce: the surfaces are black or unlit");
     } else if !sees_itself {
         skip(&mut skipped, "bounce", "no surface sees another (every texel sees open sky in every direction)");
     } else {
-        let texel_size = 1.0 / texels_per_unit.max(1e-30);
         let patches = patches::build(texels, options.bounce.patches, texel_size);
         // Overlapping surfaces bounce the light of their place once between
         // them: the bounce pass weighs each texel by its share of the area.
-        let shares = overlaps::bounce_shares(scene, texels, texel_size);
-        overlapped = shares.as_ref().map_or(0, |s| s.iter().filter(|&&s| s < 1.0).count());
         let stats = bounce::run(
             gpu,
             scene,
             texels,
-            shares.as_deref(),
+            overlaps.as_ref().map(|o| o.shares.as_slice()),
             &patches,
             &mut lightmap,
             coverage.as_deref(),
@@ -145,6 +146,16 @@ pub fn run(
         )?;
         bounce_stats = Some(stats);
     }
+    // What lies hidden under an opaque surface gets no light, whatever the
+    // depth maps made of the surface over it.
+    if let Some(overlaps) = &overlaps {
+        for (value, &hidden) in lightmap.iter_mut().zip(&overlaps.hidden) {
+            if hidden {
+                *value = [0.0; 3];
+            }
+        }
+    }
+    let overlapped = overlaps.as_ref().map_or(0, Overlaps::count);
     Ok(Solution { lightmap, direct: direct_stats, bounce: bounce_stats, supersampled, overlapped, skipped })
 }
 

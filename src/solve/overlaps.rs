@@ -7,11 +7,14 @@
 //! A path meets one surface there. So each texel gets the share of its area
 //! that bounces light:
 //! - 1 where no other surface covers its position;
-//! - 1/k where k surfaces lie in its plane over its position;
+//! - 1/k where k surfaces lie in its plane over its position (each gets the
+//!   place's light, as a path tracer's point on either does);
 //! - 0 where another lies in front of it within a texel: it is hidden.
 //!
-//! Its lightmap value is left alone (a coincident surface does get the light;
-//! a hidden one's value is never seen).
+//! A texel hidden under an opaque surface also gets no light: the depth maps
+//! took the surface over it for its own plane and lit it (0.25 where the
+//! reference has 0.0004, under a floor a centimetre over the ground). Under a
+//! blended one (baked as opaque) it keeps its light, since it shows through.
 
 use std::collections::HashMap;
 
@@ -28,12 +31,37 @@ const SAME_FACING_COS: f32 = 0.9995;
 struct Cover {
     corners: [Vec3; 3],
     normal: Vec3,
+    /// Alpha-BLEND: baked as opaque, but what lies under it shows through.
+    see_through: bool,
 }
 
-/// Each texel's share of its area that bounces light (see the module
-/// comment), or `None` when no surface covers another anywhere.
-/// `texel_size` is the atlas's texel spacing in metres.
-pub fn bounce_shares(scene: &Scene, texels: &TexelSet, texel_size: f32) -> Option<Vec<f32>> {
+/// Where surfaces overlap, per texel in `TexelSet` order.
+pub struct Overlaps {
+    /// The share of the texel's area that bounces light (see the module comment).
+    pub shares: Vec<f32>,
+    /// Hidden under an opaque surface within a texel: no light reaches it.
+    pub hidden: Vec<bool>,
+}
+
+impl Overlaps {
+    /// Texels that share their place or are hidden.
+    pub fn count(&self) -> usize {
+        self.shares.iter().filter(|&&s| s < 1.0).count()
+    }
+}
+
+/// What a texel's position has over it.
+#[derive(Clone, Copy, PartialEq)]
+enum Over {
+    /// `k` surfaces in its plane, itself included (1: alone).
+    Shared(u32),
+    /// A surface in front of it within a texel; `opaque` unless all such are blended.
+    Hidden { opaque: bool },
+}
+
+/// The overlaps of `texels`' surfaces, or `None` when no surface covers
+/// another anywhere. `texel_size` is the atlas's texel spacing in metres.
+pub fn find(scene: &Scene, texels: &TexelSet, texel_size: f32) -> Option<Overlaps> {
     let covers = covering_triangles(scene);
     let (lo, hi) = scene.bounds()?;
     // Coincident: within millionths of the scene's size (rounding of node
@@ -47,16 +75,17 @@ pub fn bounce_shares(scene: &Scene, texels: &TexelSet, texel_size: f32) -> Optio
     let reach = 1.5 * texel_size.max(largest) + hidden_within;
     let grid = Grid::new(texels.texels.iter().map(|t| Vec3::from(t.position)), reach);
 
-    let shares: Vec<f32> = texels
+    let over: Vec<Over> = texels
         .texels
         .par_iter()
         .map(|t| {
             if t.area <= 0.0 || covers[t.triangle as usize].is_none() {
-                return 1.0;
+                return Over::Shared(1);
             }
             let (p, n) = (Vec3::from(t.position), Vec3::from(t.face_normal));
             let mut seen: Vec<u32> = Vec::new();
             let mut coincident = 1;
+            let mut hidden = None;
             for j in grid.near(p) {
                 let u = texels.texels[j as usize].triangle;
                 if u == t.triangle || seen.contains(&u) {
@@ -74,13 +103,28 @@ pub fn bounce_shares(scene: &Scene, texels: &TexelSet, texel_size: f32) -> Optio
                 if ahead.abs() <= tolerance && cover.holds(p, tolerance) {
                     coincident += 1;
                 } else if ahead > tolerance && ahead <= hidden_within && cover.holds(p, -tolerance) {
-                    return 0.0;
+                    hidden = Some(hidden.unwrap_or(false) || !cover.see_through);
                 }
             }
-            1.0 / coincident as f32
+            match hidden {
+                Some(opaque) => Over::Hidden { opaque },
+                None => Over::Shared(coincident),
+            }
         })
         .collect();
-    shares.iter().any(|&s| s < 1.0).then_some(shares)
+    if over.iter().all(|&o| o == Over::Shared(1)) {
+        return None;
+    }
+    Some(Overlaps {
+        shares: over
+            .iter()
+            .map(|o| match o {
+                Over::Shared(k) => 1.0 / *k as f32,
+                Over::Hidden { .. } => 0.0,
+            })
+            .collect(),
+        hidden: over.iter().map(|o| matches!(o, Over::Hidden { opaque: true })).collect(),
+    })
 }
 
 impl Cover {
@@ -102,12 +146,14 @@ impl Cover {
 fn covering_triangles(scene: &Scene) -> Vec<Option<Cover>> {
     let mut covers = Vec::new();
     for primitive in &scene.primitives {
-        let cut_out = matches!(scene.material(primitive).alpha, AlphaMode::Mask(_));
+        let alpha = scene.material(primitive).alpha;
+        let cut_out = matches!(alpha, AlphaMode::Mask(_));
+        let see_through = alpha == AlphaMode::Blend;
         let repeat = crate::repeats::mask(&primitive.repeats, primitive.triangle_count());
         for t in (0..primitive.triangle_count()).filter(|&t| !repeat[t]) {
             let normal = primitive.face_normal(t);
             let corners = primitive.front_corners(t).map(|i| Vec3::from(primitive.positions[i as usize]));
-            covers.push((!cut_out && normal != Vec3::ZERO).then_some(Cover { corners, normal }));
+            covers.push((!cut_out && normal != Vec3::ZERO).then_some(Cover { corners, normal, see_through }));
         }
     }
     covers
