@@ -351,8 +351,10 @@ fn torus_resting_on_a_sunlit_floor_sees_the_shadow_beneath_it_with_its_underside
     let ratios = bands_against_reference(&baked, &lower, minor, Some(&sun));
     eprintln!("ring underside, bake / reference by band from the contact up: {ratios:.3?}");
     // The contact's band keeps some excess: the floor's own shadow there is
-    // a few texels wide.
-    assert!(ratios[0] < 1.35, "contact band: {}", ratios[0]);
+    // a few texels wide. Shot to the end it is 1.36; stopped with 13 % of the
+    // light that could land on the ring unshot (the old stop rule), it read
+    // 1.22 while the bands above read 0.95 and 0.98.
+    assert!(ratios[0] < 1.45, "contact band: {}", ratios[0]);
     for (k, ratio) in ratios.iter().enumerate().skip(1) {
         assert!((ratio - 1.0).abs() < 0.1, "band {k}: {ratio}");
     }

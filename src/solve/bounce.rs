@@ -591,7 +591,7 @@ fn patch_coverage(texels: &TexelSet, patches: &Patches, coverage: Option<&[f32]>
     let Some(coverage) = coverage else {
         return vec![1.0; patches.patches.len().max(1)];
     };
-    let mut shares: Vec<f32> = patches
+    let mut per_patch: Vec<f32> = patches
         .patches
         .iter()
         .map(|p| {
@@ -605,8 +605,9 @@ fn patch_coverage(texels: &TexelSet, patches: &Patches, coverage: Option<&[f32]>
             if area > 0.0 { (covered / area) as f32 } else { 0.0 }
         })
         .collect();
-    shares.resize(shares.len().max(1), 0.0);
-    shares
+    // A buffer is never empty.
+    per_patch.resize(per_patch.len().max(1), 0.0);
+    per_patch
 }
 
 /// The share of shot power that landed on the scene so far (1 before any
