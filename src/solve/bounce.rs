@@ -316,7 +316,14 @@ pub fn run(
         ..*texels
     });
     let texels = weighted.as_ref().unwrap_or(texels);
-    let shares = shares.map_or_else(|| vec![1.0f32; texels.texels.len()], <[f32]>::to_vec);
+    let ones;
+    let shares = match shares {
+        Some(shares) => shares,
+        None => {
+            ones = vec![1.0f32; texels.texels.len()];
+            &ones
+        }
+    };
     // Initial unshot radiosity: reflected direct light plus emission.
     let unshot: Vec<[f32; 4]> = texels
         .texels
@@ -381,14 +388,8 @@ pub fn run(
     let patch_params = BounceParams { row_stride: patch_groups_x * 64, ..params };
 
     let patch_coverage = patch_coverage(texels, patches, coverage);
-    let inputs = Inputs {
-        texels: gpu_texels,
-        shares: &shares,
-        patches,
-        patch_coverage: &patch_coverage,
-        unshot: &unshot,
-        lightmap,
-    };
+    let inputs =
+        Inputs { texels: gpu_texels, shares, patches, patch_coverage: &patch_coverage, unshot: &unshot, lightmap };
     let resources = resources(gpu, scene, &inputs, params, face, tiles_per_row, tile_rows);
     // Without a direct pass (emitters only) the share is unknown: normalize.
     let normalized = initial_closure.is_none_or(|f| f * luminance(mean_albedo) >= NORMALIZE_FROM);

@@ -78,12 +78,13 @@ pub fn find(scene: &Scene, texels: &TexelSet, texel_size: f32) -> Option<Overlap
     let over: Vec<Over> = texels
         .texels
         .par_iter()
-        .map(|t| {
+        // The triangles a texel has looked at, in a list each thread reuses.
+        .map_init(Vec::new, |seen: &mut Vec<u32>, t| {
             if t.area <= 0.0 || covers[t.triangle as usize].is_none() {
                 return Over::Shared(1);
             }
             let (p, n) = (Vec3::from(t.position), Vec3::from(t.face_normal));
-            let mut seen: Vec<u32> = Vec::new();
+            seen.clear();
             let mut coincident = 1;
             let mut hidden = None;
             for j in grid.near(p) {
