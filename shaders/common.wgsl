@@ -185,7 +185,22 @@ fn luminance(c: vec3f) -> f32 {
 
 // The hemicube's origin: the centroid lifted off the patch's own surface.
 fn hemicube_origin(s: Shooter) -> vec3f {
-    return s.position + s.normal * s.lift;
+    return lifted_origin(s.position, s.normal, s.lift);
+}
+
+// `position` lifted `lift` along `normal` (as `hemicube_origin`).
+fn lifted_origin(position: vec3f, normal: vec3f, lift: f32) -> vec3f {
+    return position + normal * lift;
+}
+
+// One face of a shooter's hemicube as the hemicube pass draws it, at
+// slot · 5 + face: written by solve_select, read as instance attributes
+// (`FaceIn` in solve_hemicube.wgsl). Mirrors `bounce::HemicubeFace`.
+struct HemicubeFace {
+    position: vec3f,  // the shooter's, as in `Shooter`
+    lift: f32,
+    normal: vec3f,
+    face: u32,
 }
 
 // Hemicube faces: 0 along the normal, 1..4 the half faces around it

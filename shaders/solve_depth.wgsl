@@ -1,6 +1,6 @@
 // Orthographic depth maps of the scene along −ω for each light of a batch
 // (design notes, algorithm step 3), tiled into one depth atlas; the draw's
-// instance index names the light slot. Triangles of alpha-MASK materials
+// instance names the light slot. Triangles of alpha-MASK materials
 // are drawn by `fs_depth_masked`, which discards their cut-out fragments so
 // light passes through the holes. Both layers mark in their depths' two
 // lowest bits the surfaces whose back faces the light and those on an open
@@ -12,9 +12,15 @@
 @group(0) @binding(3) var textures: texture_2d_array<f32>;
 @group(0) @binding(4) var texture_sampler: sampler;
 
+// The instance's light, as an instance attribute: a CPU driver fetches it
+// once per draw, where `lights.items[instance]` costs a load per vertex.
+struct LightIn {
+    @location(5) direction: vec4f,
+}
+
 @vertex
-fn vs_depth(in: CasterIn, @builtin(instance_index) slot: u32) -> CasterOut {
-    let ls = light_space(in.position, lights.items[slot].direction.xyz, params.centre, params.radius);
+fn vs_depth(in: CasterIn, light: LightIn) -> CasterOut {
+    let ls = light_space(in.position, light.direction.xyz, params.centre, params.radius);
     var out: CasterOut;
     out.clip = vec4f(ls.x, ls.y, ls.z, 1.0);
     out.local = vec3f(0.0);

@@ -5,18 +5,26 @@
 // from the shooter, written per fragment.
 
 @group(0) @binding(0) var<uniform> params: BounceParams;
-@group(0) @binding(1) var<storage, read> shooters: array<Shooter>;
 @group(0) @binding(2) var<storage, read> materials: array<Material>;
 @group(0) @binding(3) var textures: texture_2d_array<f32>;
 @group(0) @binding(4) var texture_sampler: sampler;
 
+// The instance's shooter and face (`HemicubeFace`), as instance attributes:
+// a CPU driver fetches them once per draw, where reading the shooter from a
+// buffer by instance index cost a load per vertex and lane.
+struct FaceIn {
+    @location(5) position: vec3f,
+    @location(6) lift: f32,
+    @location(7) normal: vec3f,
+    @location(8) face: u32,
+}
+
 @vertex
-fn vs_hemicube(in: CasterIn, @builtin(instance_index) instance: u32) -> CasterOut {
+fn vs_hemicube(in: CasterIn, view: FaceIn) -> CasterOut {
     let position = in.position;
-    let shooter = shooters[instance / 5u];
-    let face = instance % 5u;
-    let m = basis(shooter.normal);
-    let d = position - hemicube_origin(shooter);
+    let face = view.face;
+    let m = basis(view.normal);
+    let d = position - lifted_origin(view.position, view.normal, view.lift);
     let local = vec3f(dot(d, m[0]), dot(d, m[1]), dot(d, m[2]));
     // The face's frame, as receivers project into it (`hemicube_face`): a
     // half face's viewport holds only the upper half of its frustum.

@@ -14,6 +14,8 @@
 // Per patch: how much of its texels' hemispheres the scene covers (1
 // without a direct pass): an upper bound of the share of its light that lands.
 @group(0) @binding(7) var<storage, read> patch_coverage: array<f32>;
+// The batch's hemicube faces, five per slot, for the hemicube pass.
+@group(0) @binding(8) var<storage, read_write> hemicube_faces: array<HemicubeFace>;
 
 const THREADS: u32 = 256u;
 var<workgroup> best_power: array<f32, THREADS>;
@@ -103,6 +105,9 @@ fn main(@builtin(local_invocation_index) lid: u32) {
                 count += 1u;
             }
             shooters[slot] = shooter;
+            for (var face = 0u; face < 5u; face++) {
+                hemicube_faces[slot * 5u + face] = HemicubeFace(shooter.position, shooter.lift, shooter.normal, face);
+            }
         }
         storageBarrier();
         workgroupBarrier();

@@ -55,9 +55,10 @@ fn basis(n: vec3f) -> mat3x3f {
     return mat3x3f(vec3f(1.0 + s * n.x * n.x * a, s * b, -s * n.x), vec3f(b, s + n.y * n.y * a, -n.y), n);
 }
 
+// The light's direction is an instance attribute, as in solve_depth.wgsl.
 @vertex
-fn vs_depth(@location(0) position: vec3f, @builtin(instance_index) slot: u32) -> @builtin(position) vec4f {
-    let w = lights.items[slot].direction.xyz;
+fn vs_depth(@location(0) position: vec3f, @location(5) direction: vec4f) -> @builtin(position) vec4f {
+    let w = direction.xyz;
     let m = basis(w);
     let d = position - params.centre;
     return vec4f(dot(d, m[0]) / params.radius, dot(d, m[1]) / params.radius, 0.5 - 0.5 * dot(d, w) / params.radius, 1.0);
@@ -189,7 +190,8 @@ pub fn measure(
         _pad: [0; 2],
     };
     let params_buffer = gpu.uniform_buffer("bare params", &params);
-    let lights_buffer = gpu.uniform_buffer("bare lights", &[Light::default(); MAX_BATCH]);
+    let lights_buffer =
+        gpu.uniform_buffer_with("bare lights", &[Light::default(); MAX_BATCH], wgpu::BufferUsages::VERTEX);
     let texel_buffer = gpu.storage_buffer("bare texels", texels, wgpu::BufferUsages::empty());
     let irradiance =
         gpu.storage_buffer("bare irradiance", &vec![[0.0f32; 4]; texels.len()], wgpu::BufferUsages::empty());
@@ -256,11 +258,18 @@ pub fn measure(
             module: &module,
             entry_point: Some("vs_depth"),
             compilation_options: Default::default(),
-            buffers: &[Some(wgpu::VertexBufferLayout {
-                array_stride: 12,
-                step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &wgpu::vertex_attr_array![0 => Float32x3],
-            })],
+            buffers: &[
+                Some(wgpu::VertexBufferLayout {
+                    array_stride: 12,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &wgpu::vertex_attr_array![0 => Float32x3],
+                }),
+                Some(wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<Light>() as u64,
+                    step_mode: wgpu::VertexStepMode::Instance,
+                    attributes: &wgpu::vertex_attr_array![5 => Float32x4],
+                }),
+            ],
         },
         primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
         depth_stencil: Some(wgpu::DepthStencilState {
@@ -321,6 +330,7 @@ pub fn measure(
             pass.set_pipeline(&render_pipeline);
             pass.set_bind_group(0, &render_group, &[]);
             pass.set_vertex_buffer(0, vertices.slice(..));
+            pass.set_vertex_buffer(1, lights_buffer.slice(..));
             pass.set_index_buffer(index_buffer.slice(..), wgpu::IndexFormat::Uint32);
             for slot in 0..lights.len() as u32 {
                 let (tx, ty) = (slot % tiles_per_row, slot / tiles_per_row);

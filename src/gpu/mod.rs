@@ -372,11 +372,21 @@ impl Gpu {
 
     /// A uniform buffer holding one `T`.
     pub fn uniform_buffer<T: bytemuck::Pod>(&self, label: &str, value: &T) -> wgpu::Buffer {
+        self.uniform_buffer_with(label, value, wgpu::BufferUsages::empty())
+    }
+
+    /// As `uniform_buffer`, with `extra` usages.
+    pub fn uniform_buffer_with<T: bytemuck::Pod>(
+        &self,
+        label: &str,
+        value: &T,
+        extra: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
         use wgpu::util::DeviceExt;
         self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some(label),
             contents: bytemuck::bytes_of(value),
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST | extra,
         })
     }
 

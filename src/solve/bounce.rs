@@ -224,6 +224,24 @@ struct Shooter {
     _pad: u32,
 }
 
+/// Mirrors `HemicubeFace` in common.wgsl: one face of a shooter's hemicube,
+/// written on the GPU by the select pass.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable, Default)]
+struct HemicubeFace {
+    position: [f32; 3],
+    lift: f32,
+    normal: [f32; 3],
+    face: u32,
+}
+
+/// The hemicube pass's instance attributes (`FaceIn` in solve_hemicube.wgsl).
+const FACE_INSTANCES: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayout {
+    array_stride: std::mem::size_of::<HemicubeFace>() as u64,
+    step_mode: wgpu::VertexStepMode::Instance,
+    attributes: &wgpu::vertex_attr_array![5 => Float32x3, 6 => Float32, 7 => Float32x3, 8 => Uint32],
+};
+
 /// Mirrors `BounceStats` in common.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable, Default, Debug)]
@@ -257,6 +275,8 @@ struct Resources {
     patch_origin: wgpu::Buffer,
     chosen: wgpu::Buffer,
     shooters: wgpu::Buffer,
+    /// Five faces per shooter slot: the hemicube pass's instances.
+    hemicube_faces: wgpu::Buffer,
     stats: wgpu::Buffer,
     /// Per patch: the scale of its form factors, 0 until it first shoots.
     patch_scale: wgpu::Buffer,
@@ -670,6 +690,11 @@ fn resources(
         patch_origin: gpu.zeroed_storage_buffer::<[f32; 4]>("solve_patch_power origins", patches.patches.len(), none),
         chosen: gpu.zeroed_storage_buffer::<u32>("solve_select chosen", patches.patches.len(), none),
         shooters: gpu.storage_buffer("solve_select shooters", &[Shooter::default(); MAX_SHOOTERS as usize], none),
+        hemicube_faces: gpu.zeroed_storage_buffer::<HemicubeFace>(
+            "solve_select hemicube faces",
+            5 * MAX_SHOOTERS as usize,
+            wgpu::BufferUsages::VERTEX,
+        ),
         stats: gpu.storage_buffer("solve_select stats", &[GpuStats::default()], wgpu::BufferUsages::COPY_SRC),
         patch_scale: gpu.zeroed_storage_buffer::<f32>(
             "solve_shoot patch scales",
@@ -758,13 +783,25 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             // 6: per-patch origins, 7: per-patch coverage
             gpu::storage_entry(6, true, compute),
             gpu::storage_entry(7, true, compute),
+            // 8: the shooters' hemicube faces (written)
+            gpu::storage_entry(8, false, compute),
         ],
     );
     let select_group = gpu::bind_buffers(
         gpu,
         "solve_select",
         &select_layout,
-        &[&r.params, &r.patches, &r.patch_power, &r.chosen, &r.shooters, &r.stats, &r.patch_origin, &r.patch_coverage],
+        &[
+            &r.params,
+            &r.patches,
+            &r.patch_power,
+            &r.chosen,
+            &r.shooters,
+            &r.stats,
+            &r.patch_origin,
+            &r.patch_coverage,
+            &r.hemicube_faces,
+        ],
     );
 
     let vertex = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
@@ -772,9 +809,8 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
     let hemicube_layout = layout(
         "solve_hemicube",
         &[
-            // 0: BounceParams (near, far), 1: shooters
+            // 0: BounceParams (near, far)
             gpu::uniform_entry(0, vertex),
-            gpu::storage_entry(1, true, wgpu::ShaderStages::VERTEX),
             // 2, 3, 4: materials, their textures and sampler (alpha cut-outs)
             materials_entry,
             textures_entry,
@@ -787,7 +823,6 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
         layout: &hemicube_layout,
         entries: &[
             wgpu::BindGroupEntry { binding: 0, resource: r.params.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 1, resource: r.shooters.as_entire_binding() },
             materials_binding,
             textures_binding,
             sampler_binding,
@@ -871,6 +906,7 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
         &hemicube_pipeline_layout,
         &module,
         "vs_hemicube",
+        FACE_INSTANCES,
         Some("fs_hemicube"),
         &front_target,
     );
@@ -880,6 +916,7 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
         &hemicube_pipeline_layout,
         &module,
         "vs_hemicube",
+        FACE_INSTANCES,
         Some("fs_hemicube_masked"),
         &front_target,
     );
@@ -928,7 +965,7 @@ fn render_hemicubes(
         multiview_mask: None,
     });
     pass.set_bind_group(0, &pipelines.hemicube.2, &[]);
-    r.casters.bind(&mut pass);
+    r.casters.bind(&mut pass, &r.hemicube_faces);
     let s = face as f32;
     for slot in 0..shooters {
         let tile = [(slot % tiles_per_row) as f32 * 3.0 * s, (slot / tiles_per_row) as f32 * s];

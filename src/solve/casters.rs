@@ -116,9 +116,12 @@ impl Casters {
         ]
     }
 
-    /// Binds the geometry for drawing.
-    pub fn bind(&self, pass: &mut wgpu::RenderPass) {
+    /// Binds the geometry for drawing, with `instances` (what the vertex
+    /// shader needs of each instance's light or hemicube face, as the
+    /// pipeline's `instances` layout reads it) in vertex buffer 1.
+    pub fn bind(&self, pass: &mut wgpu::RenderPass, instances: &wgpu::Buffer) {
         pass.set_vertex_buffer(0, self.vertices.slice(..));
+        pass.set_vertex_buffer(1, instances.slice(..));
         pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
     }
 
@@ -142,12 +145,18 @@ impl Casters {
     }
 
     /// A depth-only pipeline for casters: `fragment` None for opaque triangles.
+    /// `instances` lays out the per-instance attributes (locations 5 on):
+    /// a CPU driver fetches an instance's attributes once per draw, where a
+    /// buffer read indexed by the instance costs a load per vertex and lane
+    /// (on lavapipe most of the hemicubes' time went there).
+    #[allow(clippy::too_many_arguments)]
     pub fn pipeline(
         gpu: &Gpu,
         label: &str,
         layout: &wgpu::PipelineLayout,
         module: &wgpu::ShaderModule,
         vertex: &str,
+        instances: wgpu::VertexBufferLayout<'_>,
         fragment: Option<&str>,
         targets: &[Option<wgpu::ColorTargetState>],
     ) -> wgpu::RenderPipeline {
@@ -158,7 +167,7 @@ impl Casters {
                 module,
                 entry_point: Some(vertex),
                 compilation_options: Default::default(),
-                buffers: &[Some(VERTEX_LAYOUT)],
+                buffers: &[Some(VERTEX_LAYOUT), Some(instances)],
             },
             primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
             depth_stencil: Some(wgpu::DepthStencilState {

@@ -97,6 +97,14 @@ struct DirectLight {
     nearest: [f32; 4],
 }
 
+/// The depth maps' instance attributes: the light's direction (`LightIn` in
+/// solve_depth.wgsl), read from the batch's lights, one per instance.
+const LIGHT_INSTANCES: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayout {
+    array_stride: std::mem::size_of::<DirectLight>() as u64,
+    step_mode: wgpu::VertexStepMode::Instance,
+    attributes: &wgpu::vertex_attr_array![5 => Float32x4],
+};
+
 /// The scene's bounding sphere (centre, radius with a margin so that
 /// geometry never touches the near or far plane).
 pub(super) fn bounding_sphere(scene: &Scene) -> (Vec3, f32) {
@@ -195,7 +203,12 @@ pub fn run(
     let casters = Casters::new(gpu, scene, true);
 
     let params_buffer = gpu.uniform_buffer("solve_direct params", &params);
-    let lights_buffer = gpu.uniform_buffer("solve_direct lights", &[DirectLight::default(); MAX_BATCH as usize]);
+    // Also the depth maps' instance attributes: each light's direction.
+    let lights_buffer = gpu.uniform_buffer_with(
+        "solve_direct lights",
+        &[DirectLight::default(); MAX_BATCH as usize],
+        wgpu::BufferUsages::VERTEX,
+    );
     let texel_buffer =
         gpu.storage_buffer_of_parts("solve_direct texels", &[&texels.texels, samples], wgpu::BufferUsages::empty());
     let coverage =
@@ -243,14 +256,23 @@ pub fn run(
         bind_group_layouts: &[Some(&depth_layout)],
         immediate_size: 0,
     });
-    let opaque_pipeline =
-        Casters::pipeline(gpu, "solve_depth", &depth_pipeline_layout, &depth_module, "vs_depth", Some("fs_depth"), &[]);
+    let opaque_pipeline = Casters::pipeline(
+        gpu,
+        "solve_depth",
+        &depth_pipeline_layout,
+        &depth_module,
+        "vs_depth",
+        LIGHT_INSTANCES,
+        Some("fs_depth"),
+        &[],
+    );
     let masked_pipeline = Casters::pipeline(
         gpu,
         "solve_depth masked",
         &depth_pipeline_layout,
         &depth_module,
         "vs_depth",
+        LIGHT_INSTANCES,
         Some("fs_depth_masked"),
         &[],
     );
@@ -276,6 +298,7 @@ pub fn run(
         &peel_pipeline_layout,
         &depth_module,
         "vs_depth",
+        LIGHT_INSTANCES,
         Some("fs_depth_peel"),
         &[],
     );
@@ -285,6 +308,7 @@ pub fn run(
         &peel_pipeline_layout,
         &depth_module,
         "vs_depth",
+        LIGHT_INSTANCES,
         Some("fs_depth_peel_masked"),
         &[],
     );
@@ -357,7 +381,7 @@ pub fn run(
             if second {
                 pass.set_bind_group(1, &front_group, &[]);
             }
-            casters.bind(&mut pass);
+            casters.bind(&mut pass, &lights_buffer);
             let (opaque, masked) = if second {
                 (&peel_opaque_pipeline, &peel_masked_pipeline)
             } else {
