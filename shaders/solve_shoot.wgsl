@@ -32,7 +32,18 @@
 @group(0) @binding(0) var<uniform> params: BounceParams;
 @group(0) @binding(1) var<storage, read> texels: array<Texel>;
 @group(0) @binding(2) var<storage, read> texel_patch: array<u32>;
-@group(0) @binding(3) var<storage, read> shooters: array<Shooter>;
+// The batch's shooters and their light by sub-cells
+// (solve_patch_power.wgsl) are uniform buffers: a CPU driver gathers a
+// uniform array's elements for all lanes at once, where it reads a storage
+// or workgroup array indexed by a loop counter lane by lane (on lavapipe
+// that was most of a shot's gather).
+struct ShooterBatch {
+    items: array<Shooter, MAX_SHOOTERS>,
+}
+struct ShooterCells {
+    items: array<vec4f, SHOOTER_CELLS>,
+}
+@group(0) @binding(3) var<uniform> shooters: ShooterBatch;
 @group(0) @binding(4) var<storage, read_write> lightmap: array<vec4f>;
 @group(0) @binding(5) var<storage, read_write> unshot: array<vec4f>;
 @group(0) @binding(6) var depth: texture_depth_2d;
@@ -46,8 +57,8 @@
 // `main` for `near_field` (the list's order varies; each texel's sum does not).
 @group(0) @binding(10) var<storage, read_write> near_list: NearList;
 
-// Each shooter's unshot light by sub-cells of its patch (solve_patch_power.wgsl).
-@group(0) @binding(11) var<storage, read> shooter_cells: array<vec4f>;
+// Per slot: each sub-cell's unshot power and area, then their centroids.
+@group(0) @binding(11) var<uniform> shooter_cells: ShooterCells;
 // Per texel: the share of its area that bounces light (1 unless another
 // surface lies on or over it; src/solve/overlaps.rs). Where two surfaces
 // coincide, each receives the place's light but counts for half its area.
@@ -61,6 +72,7 @@ struct NearList {
 
 // A near-field receiver's slots are the bits of one u32.
 const MAX_SHOOTERS: u32 = 32u;
+const SHOOTER_CELLS: u32 = 1024u;  // MAX_SHOOTERS · 2 · SUB_CELL_COUNT
 // Texels one measure workgroup sums (64 invocations × 64 texels).
 const MEASURE_CHUNK: u32 = 4096u;
 // Bounds on the far-field scale: a patch that needs more has geometry the
@@ -73,7 +85,6 @@ const NEAR_FIELD: f32 = 4.0;
 // A receiver this close to a near shooter's plane, in receiver offsets
 // (half texels), is in contact with it.
 const CONTACT: f32 = 0.1;
-var<workgroup> batch: array<Shooter, MAX_SHOOTERS>;
 
 // One edge's term of Lambert's contour integral, for corner vectors a, b
 // seen from the receiver.
@@ -273,12 +284,7 @@ fn near_form_factor(texel: Texel, s: Shooter) -> f32 {
 // for all lanes, so the exact polygon form factor, needed by a few texels
 // near each shooter, would otherwise cost every texel-shooter pair.
 @compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
-    // Shooters are read once per workgroup into shared memory.
-    for (var k = lid; k < params.shooter_count; k += 64u) {
-        batch[k] = shooters[k];
-    }
-    workgroupBarrier();
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x + id.y * params.row_stride;
     if (i >= params.texel_count) {
         return;
@@ -289,7 +295,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_
     var shot = false;
     var near_slots = 0u;
     for (var k = 0u; k < params.shooter_count; k++) {
-        let s = batch[k];
+        let s = shooters.items[k];
         if (s.patch_index == NO_TRIANGLE) {
             continue;
         }
@@ -326,8 +332,8 @@ fn near_radiance(texel: Texel, s: Shooter, k: u32) -> vec3f {
     var sum = vec3f(0.0);
     var weight = 0.0;
     for (var c = 0u; c < SUB_CELL_COUNT; c++) {
-        let cell = shooter_cells[base + c];
-        let d = shooter_cells[base + SUB_CELL_COUNT + c].xyz - texel.position;
+        let cell = shooter_cells.items[base + c];
+        let d = shooter_cells.items[base + SUB_CELL_COUNT + c].xyz - texel.position;
         let r2 = dot(d, d);
         // cos θ_i cos θ_j · A / (π r² + A), the cosines' 1/r² folded in.
         let cosines = max(dot(texel.normal, d), 0.0) * max(-dot(s.normal, d), 0.0);
@@ -370,7 +376,7 @@ fn near_field(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgro
     var gathered = vec3f(0.0);
     for (var slots = entry.y; slots != 0u; slots &= slots - 1u) {
         let k = firstTrailingBit(slots);
-        let s = shooters[k];
+        let s = shooters.items[k];
         gathered += near_form_factor(texel, s) * near_radiance(texel, s, k);
     }
     lightmap[i] += vec4f(gathered, 0.0);
@@ -401,7 +407,7 @@ fn workgroup_sum(value: f32, lid: u32) -> f32 {
 // invocation, so that the whole workgroup branches on it alike).
 fn needs_scale(k: u32, lid: u32) -> bool {
     if (lid == 0u) {
-        let s = shooters[k];
+        let s = shooters.items[k];
         slot_needs_scale = u32(s.patch_index != NO_TRIANGLE && patch_scale[s.patch_index] <= 0.0);
     }
     return workgroupUniformLoad(&slot_needs_scale) != 0u;
@@ -415,7 +421,7 @@ fn measure(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
     if (!needs_scale(k, lid)) {
         return;
     }
-    let s = shooters[k];
+    let s = shooters.items[k];
     var sum = vec2f(0.0);
     let first = group.x * MEASURE_CHUNK;
     for (var i = first + lid; i < min(first + MEASURE_CHUNK, params.texel_count); i += 64u) {
@@ -482,6 +488,6 @@ fn finish(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_ind
         if (measured.y > 0.0) {
             scale = clamp((share - measured.x) / measured.y, MIN_SCALE, MAX_SCALE);
         }
-        patch_scale[shooters[k].patch_index] = scale;
+        patch_scale[shooters.items[k].patch_index] = scale;
     }
 }

@@ -689,7 +689,11 @@ fn resources(
         patch_power: gpu.zeroed_storage_buffer::<[f32; 4]>("solve_patch_power power", patches.patches.len(), none),
         patch_origin: gpu.zeroed_storage_buffer::<[f32; 4]>("solve_patch_power origins", patches.patches.len(), none),
         chosen: gpu.zeroed_storage_buffer::<u32>("solve_select chosen", patches.patches.len(), none),
-        shooters: gpu.storage_buffer("solve_select shooters", &[Shooter::default(); MAX_SHOOTERS as usize], none),
+        shooters: gpu.storage_buffer(
+            "solve_select shooters",
+            &[Shooter::default(); MAX_SHOOTERS as usize],
+            wgpu::BufferUsages::UNIFORM,
+        ),
         hemicube_faces: gpu.zeroed_storage_buffer::<HemicubeFace>(
             "solve_select hemicube faces",
             5 * MAX_SHOOTERS as usize,
@@ -717,7 +721,7 @@ fn resources(
             "solve_patch_power shooter cells",
             // Per slot and sub-cell: unshot power and area, then the centroid.
             &vec![[0f32; 4]; MAX_SHOOTERS as usize * 2 * SUB_CELL_COUNT],
-            none,
+            wgpu::BufferUsages::UNIFORM,
         ),
         depth_view: depth.create_view(&Default::default()),
         front_view: front.create_view(&Default::default()),
@@ -836,7 +840,7 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             gpu::uniform_entry(0, compute),
             gpu::storage_entry(1, true, compute),
             gpu::storage_entry(2, true, compute),
-            gpu::storage_entry(3, true, compute),
+            gpu::uniform_entry(3, compute),
             // 4: lightmap L_lm, 5: unshot ΔL (both accumulated)
             gpu::storage_entry(4, false, compute),
             gpu::storage_entry(5, false, compute),
@@ -850,7 +854,7 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             // 10: receivers in a shooter's near field (listed, then gathered)
             gpu::storage_entry(10, false, compute),
             // 11: the shooters' light by sub-cells, 13: each texel's share of the area that bounces
-            gpu::storage_entry(11, true, compute),
+            gpu::uniform_entry(11, compute),
             gpu::storage_entry(13, true, compute),
         ],
     );
