@@ -413,29 +413,65 @@ fn needs_scale(k: u32, lid: u32) -> bool {
     return workgroupUniformLoad(&slot_needs_scale) != 0u;
 }
 
-// Workgroup (chunk, slot): Σ F_ij A_i / A_j over the chunk's texels, for
-// slots whose patch has no scale yet. Summed in a fixed order, like the rest.
+var<workgroup> slots_to_measure: u32;
+
+// The slots whose patch has no scale yet, as bits (read by one invocation,
+// so that the whole workgroup branches on them alike).
+fn slots_needing_scale(lid: u32) -> u32 {
+    if (lid == 0u) {
+        var slots = 0u;
+        for (var k = 0u; k < params.shooter_count; k++) {
+            let s = shooters.items[k];
+            if (s.patch_index != NO_TRIANGLE && patch_scale[s.patch_index] <= 0.0) {
+                slots |= 1u << k;
+            }
+        }
+        slots_to_measure = slots;
+    }
+    return workgroupUniformLoad(&slots_to_measure);
+}
+
+// Slots one measure workgroup sums for.
+const MEASURE_SLOTS: u32 = 8u;
+
+// Workgroup (chunk, group of MEASURE_SLOTS slots): Σ F_ij A_i / A_j over the
+// chunk's texels, for each of the group's slots whose patch has no scale
+// yet. An invocation reads a texel once for the group's slots (a CPU driver
+// reads storage arrays lane by lane; once per slot, that was most of the
+// pass), and sums each slot's texels in a fixed order, like the rest.
 @compute @workgroup_size(64)
 fn measure(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
-    let k = group.y;
-    if (!needs_scale(k, lid)) {
+    let base = group.y * MEASURE_SLOTS;
+    let slots = slots_needing_scale(lid) & (((1u << MEASURE_SLOTS) - 1u) << base);
+    if (slots == 0u) {
         return;
     }
-    let s = shooters.items[k];
-    var sum = vec2f(0.0);
+    var near = array<f32, MEASURE_SLOTS>();
+    var far = array<f32, MEASURE_SLOTS>();
     let first = group.x * MEASURE_CHUNK;
     for (var i = first + lid; i < min(first + MEASURE_CHUNK, params.texel_count); i += 64u) {
-        if (texel_patch[i] != s.patch_index) {
-            let texel = texels[i];
-            sum += shot_form_factor(texel, s, k) * texel.area * shares[i];
+        let texel = texels[i];
+        let own_patch = texel_patch[i];
+        let share = shares[i];
+        for (var left = slots; left != 0u; left &= left - 1u) {
+            let k = firstTrailingBit(left);
+            let s = shooters.items[k];
+            if (own_patch != s.patch_index) {
+                let f = shot_form_factor(texel, s, k) * texel.area * share;
+                near[k - base] += f.x;
+                far[k - base] += f.y;
+            }
         }
     }
-    sum /= max(s.area, 1e-30);
-    // Near-field sums first, then far-field ones.
-    for (var part = 0u; part < 2u; part++) {
-        let total = workgroup_sum(sum[part], lid);
-        if (lid == 0u) {
-            partials[(part * MAX_SHOOTERS + k) * params.chunk_count + group.x] = total;
+    for (var left = slots; left != 0u; left &= left - 1u) {
+        let k = firstTrailingBit(left);
+        let sum = vec2f(near[k - base], far[k - base]) / max(shooters.items[k].area, 1e-30);
+        // Near-field sums first, then far-field ones.
+        for (var part = 0u; part < 2u; part++) {
+            let total = workgroup_sum(sum[part], lid);
+            if (lid == 0u) {
+                partials[(part * MAX_SHOOTERS + k) * params.chunk_count + group.x] = total;
+            }
         }
     }
 }

@@ -62,6 +62,9 @@ const SUB_CELL_COUNT: usize = 16;
 /// Texels one workgroup of the form-factor measure pass sums
 /// (`MEASURE_CHUNK` in solve_shoot.wgsl).
 const MEASURE_CHUNK: u32 = 4096;
+/// Shooter slots one workgroup of the measure pass sums for
+/// (`MEASURE_SLOTS` in solve_shoot.wgsl).
+const MEASURE_SLOTS: u32 = 8;
 
 /// Normalize the form factors only where the scene catches at least this
 /// much of the light it reflects (mean albedo × covered share): below it, a
@@ -491,7 +494,7 @@ pub fn run(
             pass.set_bind_group(0, &pipelines.shoot.1, &[]);
             if normalized {
                 pass.set_pipeline(&pipelines.measure);
-                pass.dispatch_workgroups(params.chunk_count, shooter_count, 1);
+                pass.dispatch_workgroups(params.chunk_count, shooter_count.div_ceil(MEASURE_SLOTS), 1);
                 pass.set_pipeline(&pipelines.finish);
                 pass.dispatch_workgroups(shooter_count, 1, 1);
             }
