@@ -19,9 +19,13 @@ struct FaceIn {
     @location(8) face: u32,
 }
 
-@vertex
-fn vs_hemicube(in: CasterIn, view: FaceIn) -> CasterOut {
-    let position = in.position;
+// The shooter's frame at a caster vertex, and its clip position on the face.
+struct FaceVertex {
+    clip: vec4f,
+    local: vec3f,  // position in the shooter's frame
+}
+
+fn face_vertex(position: vec3f, view: FaceIn) -> FaceVertex {
     let face = view.face;
     let m = basis(view.normal);
     let d = position - lifted_origin(view.position, view.normal, view.lift);
@@ -30,14 +34,34 @@ fn vs_hemicube(in: CasterIn, view: FaceIn) -> CasterOut {
     // half face's viewport holds only the upper half of its frustum.
     let f = hemicube_face_frame(local, face);
     let y = select(2.0 * f.y - f.z, f.y, face == 0u);
-    var out: CasterOut;
     // z = w − near keeps 0 ≤ z ≤ w exactly for points in front of the near plane.
-    out.clip = vec4f(f.x, y, f.z - params.near, f.z);
-    out.local = local;
+    return FaceVertex(vec4f(f.x, y, f.z - params.near, f.z), local);
+}
+
+// What an opaque caster's fragment needs (a CPU driver sets up and stores
+// every output of a vertex shader, read or not).
+struct OpaqueOut {
+    @builtin(position) clip: vec4f,
+    @location(0) local: vec3f,
+    @location(4) @interpolate(flat) face: u32,
+}
+
+@vertex
+fn vs_hemicube(in: CasterIn, view: FaceIn) -> OpaqueOut {
+    let v = face_vertex(in.position, view);
+    return OpaqueOut(v.clip, v.local, view.face);
+}
+
+@vertex
+fn vs_hemicube_masked(in: CasterIn, view: FaceIn) -> CasterOut {
+    let v = face_vertex(in.position, view);
+    var out: CasterOut;
+    out.clip = v.clip;
+    out.local = v.local;
     out.material = in.material;
     out.uv0 = in.uv0;
     out.uv1 = in.uv1;
-    out.face = face;
+    out.face = view.face;
     return out;
 }
 
@@ -49,20 +73,20 @@ struct HemicubeOut {
     @location(0) front: vec4f,
 }
 
-fn hemicube_out(in: CasterOut, front_facing: bool) -> HemicubeOut {
+fn hemicube_out(local: vec3f, face: u32, front_facing: bool) -> HemicubeOut {
     // Faces 0, 1 and 4 project with a mirror (their clip-space map has a
     // positive determinant while looking along +w), so the rasterizer's
     // counter-clockwise "front" is the surface's back there.
-    let mirrored = in.face == 0u || in.face == 1u || in.face == 4u;
+    let mirrored = face == 0u || face == 1u || face == 4u;
     var out: HemicubeOut;
-    out.depth = clamp(length(in.local) / params.far, 0.0, 1.0);
+    out.depth = clamp(length(local) / params.far, 0.0, 1.0);
     out.front = vec4f(select(0.0, 1.0, front_facing != mirrored));
     return out;
 }
 
 @fragment
-fn fs_hemicube(in: CasterOut, @builtin(front_facing) front_facing: bool) -> HemicubeOut {
-    return hemicube_out(in, front_facing);
+fn fs_hemicube(in: OpaqueOut, @builtin(front_facing) front_facing: bool) -> HemicubeOut {
+    return hemicube_out(in.local, in.face, front_facing);
 }
 
 // Alpha-MASK triangles: cut-out fragments let light through.
@@ -74,5 +98,5 @@ fn fs_hemicube_masked(in: CasterOut, @builtin(front_facing) front_facing: bool) 
     if (alpha < m.emission.w) {
         discard;
     }
-    return hemicube_out(in, front_facing);
+    return hemicube_out(in.local, in.face, front_facing);
 }

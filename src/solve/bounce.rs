@@ -922,7 +922,7 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
         "solve_hemicube masked",
         &hemicube_pipeline_layout,
         &module,
-        "vs_hemicube",
+        "vs_hemicube_masked",
         FACE_INSTANCES,
         Some("fs_hemicube_masked"),
         &front_target,
