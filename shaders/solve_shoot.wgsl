@@ -384,7 +384,6 @@ fn near_field(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgro
 }
 
 var<workgroup> sums: array<f32, 64>;
-var<workgroup> slot_needs_scale: u32;
 
 // The sum of `value` over the workgroup's 64 invocations, in a fixed order;
 // every invocation must call it.
@@ -401,16 +400,6 @@ fn workgroup_sum(value: f32, lid: u32) -> f32 {
     // Everyone has read it before the next call writes `sums` again.
     workgroupBarrier();
     return total;
-}
-
-// Whether slot k holds a patch whose scale is still unknown (read by one
-// invocation, so that the whole workgroup branches on it alike).
-fn needs_scale(k: u32, lid: u32) -> bool {
-    if (lid == 0u) {
-        let s = shooters.items[k];
-        slot_needs_scale = u32(s.patch_index != NO_TRIANGLE && patch_scale[s.patch_index] <= 0.0);
-    }
-    return workgroupUniformLoad(&slot_needs_scale) != 0u;
 }
 
 var<workgroup> slots_to_measure: u32;
@@ -482,7 +471,7 @@ fn measure(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
 @compute @workgroup_size(64)
 fn finish(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let k = group.x;
-    if (!needs_scale(k, lid)) {
+    if ((slots_needing_scale(lid) & (1u << k)) == 0u) {
         return;
     }
     var measured = vec2f(0.0);
