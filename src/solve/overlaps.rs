@@ -84,6 +84,10 @@ pub fn find(scene: &Scene, texels: &TexelSet, texel_size: f32) -> Option<Overlap
                 return Over::Shared(1);
             }
             let (p, n) = (Vec3::from(t.position), Vec3::from(t.face_normal));
+            // Coincidence is tested a hair inside the texel's own triangle: a
+            // texel on its edge (a chart's border texels lie there) is covered
+            // by a copy of that triangle, not by its own mesh's neighbour.
+            let inside = covers[t.triangle as usize].as_ref().map_or(p, |own| own.towards_inside(p, 4.0 * tolerance));
             seen.clear();
             let mut coincident = 1;
             let mut hidden = None;
@@ -101,7 +105,7 @@ pub fn find(scene: &Scene, texels: &TexelSet, texel_size: f32) -> Option<Overlap
                 // at the texel (a neighbour in its mesh) does not cover it;
                 // in front of it, one whose edge passes over it does.
                 let ahead = cover.normal.dot(cover.corners[0] - p);
-                if ahead.abs() <= tolerance && cover.holds(p, tolerance) {
+                if ahead.abs() <= tolerance && cover.holds(inside, tolerance) {
                     coincident += 1;
                 } else if ahead > tolerance && ahead <= hidden_within && cover.holds(p, -tolerance) {
                     hidden = Some(hidden.unwrap_or(false) || !cover.see_through);
@@ -129,6 +133,14 @@ pub fn find(scene: &Scene, texels: &TexelSet, texel_size: f32) -> Option<Overlap
 }
 
 impl Cover {
+    /// `p` moved at most `by` towards the triangle's centroid (at most half
+    /// way there).
+    fn towards_inside(&self, p: Vec3, by: f32) -> Vec3 {
+        let [a, b, c] = self.corners;
+        let to_centre = (a + b + c) / 3.0 - p;
+        p + to_centre * (by / to_centre.length()).min(0.5)
+    }
+
     /// Whether `p`, projected onto the triangle's plane, lies inside it at
     /// least `margin` from every edge.
     fn holds(&self, p: Vec3, margin: f32) -> bool {
