@@ -65,9 +65,9 @@ pub fn find(scene: &Scene, texels: &TexelSet, texel_size: f32) -> Option<Overlap
     let covers = covering_triangles(scene);
     let (lo, hi) = scene.bounds()?;
     // Coincident: within millionths of the scene's size (rounding of node
-    // transforms); inside a triangle: at least that far from its edges, so
-    // that a texel on an edge its own mesh shares is not covered by the
-    // triangle beyond it.
+    // transforms). Inside a triangle of the texel's own mesh: at least that
+    // far from its edges, so that a texel on an edge its mesh shares is not
+    // covered by the triangle beyond it.
     let tolerance = (1e-5 * (hi - lo).length()).max(f32::MIN_POSITIVE);
     let hidden_within = texel_size.max(tolerance);
     let largest = texels.texels.iter().map(|t| t.area).fold(0.0f32, f32::max).sqrt();
@@ -78,21 +78,27 @@ pub fn find(scene: &Scene, texels: &TexelSet, texel_size: f32) -> Option<Overlap
     let over: Vec<Over> = texels
         .texels
         .par_iter()
-        // The triangles a texel has looked at, in a list each thread reuses.
-        .map_init(Vec::new, |seen: &mut Vec<u32>, t| {
+        // The triangles a texel has looked at, and the other primitives it
+        // shares its place with, in lists each thread reuses.
+        .map_init(<(Vec<u32>, Vec<u32>)>::default, |(seen, sharing), t| {
             if t.area <= 0.0 || covers[t.triangle as usize].is_none() {
                 return Over::Shared(1);
             }
             let (p, n) = (Vec3::from(t.position), Vec3::from(t.face_normal));
-            // Coincidence is tested a hair inside the texel's own triangle: a
-            // texel on its edge (a chart's border texels lie there) is covered
-            // by a copy of that triangle, not by its own mesh's neighbour.
-            let inside = covers[t.triangle as usize].as_ref().map_or(p, |own| own.towards_inside(p, 4.0 * tolerance));
+            // Another mesh is tested a quarter texel inside the texel's own
+            // triangle, leniently: there a copy covers it, also where the
+            // texel lies on its own triangle's edge (a chart's border texels
+            // do) or on the edge between two of the copy's triangles, and a
+            // mesh that only abuts it along that edge (the next floor tile)
+            // does not.
+            let inside = covers[t.triangle as usize].as_ref().map_or(p, |own| own.towards_inside(p, 0.25 * texel_size));
             seen.clear();
+            sharing.clear();
             let mut coincident = 1;
             let mut hidden = None;
             for j in grid.near(p) {
-                let u = texels.texels[j as usize].triangle;
+                let other = &texels.texels[j as usize];
+                let u = other.triangle;
                 if u == t.triangle || seen.contains(&u) {
                     continue;
                 }
@@ -101,12 +107,18 @@ pub fn find(scene: &Scene, texels: &TexelSet, texel_size: f32) -> Option<Overlap
                 if cover.normal.dot(n) < SAME_FACING_COS {
                     continue;
                 }
-                // In the texel's plane, a triangle that merely meets its own
-                // at the texel (a neighbour in its mesh) does not cover it;
-                // in front of it, one whose edge passes over it does.
+                // In the texel's plane, a triangle of its own mesh that
+                // merely meets its own at the texel (a neighbour) does not
+                // cover it; another mesh is counted once (above). In front
+                // of it, a triangle whose edge passes over it covers it.
                 let ahead = cover.normal.dot(cover.corners[0] - p);
-                if ahead.abs() <= tolerance && cover.holds(inside, tolerance) {
-                    coincident += 1;
+                if ahead.abs() <= tolerance {
+                    if other.primitive == t.primitive {
+                        coincident += cover.holds(p, tolerance) as u32;
+                    } else if !sharing.contains(&other.primitive) && cover.holds(inside, -tolerance) {
+                        sharing.push(other.primitive);
+                        coincident += 1;
+                    }
                 } else if ahead > tolerance && ahead <= hidden_within && cover.holds(p, -tolerance) {
                     hidden = Some(hidden.unwrap_or(false) || !cover.see_through);
                 }
@@ -133,8 +145,7 @@ pub fn find(scene: &Scene, texels: &TexelSet, texel_size: f32) -> Option<Overlap
 }
 
 impl Cover {
-    /// `p` moved at most `by` towards the triangle's centroid (at most half
-    /// way there).
+    /// `p` moved `by` towards the triangle's centroid (at most half way).
     fn towards_inside(&self, p: Vec3, by: f32) -> Vec3 {
         let [a, b, c] = self.corners;
         let to_centre = (a + b + c) / 3.0 - p;
