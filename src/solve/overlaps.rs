@@ -81,9 +81,9 @@ pub fn find(scene: &Scene, texels: &TexelSet, texel_size: f32) -> Option<Overlap
         // The triangles a texel has looked at, and the other primitives it
         // shares its place with, in lists each thread reuses.
         .map_init(<(Vec<u32>, Vec<u32>)>::default, |(seen, sharing), t| {
-            if t.area <= 0.0 || covers[t.triangle as usize].is_none() {
+            let Some(own) = covers[t.triangle as usize].as_ref().filter(|_| t.area > 0.0) else {
                 return Over::Shared(1);
-            }
+            };
             let (p, n) = (Vec3::from(t.position), Vec3::from(t.face_normal));
             // Another mesh is tested a quarter texel inside the texel's own
             // triangle, leniently: there a copy covers it, also where the
@@ -91,7 +91,7 @@ pub fn find(scene: &Scene, texels: &TexelSet, texel_size: f32) -> Option<Overlap
             // do) or on the edge between two of the copy's triangles, and a
             // mesh that only abuts it along that edge (the next floor tile)
             // does not.
-            let inside = covers[t.triangle as usize].as_ref().map_or(p, |own| own.towards_inside(p, 0.25 * texel_size));
+            let inside = own.towards_inside(p, 0.25 * texel_size);
             seen.clear();
             sharing.clear();
             let mut coincident = 1;
