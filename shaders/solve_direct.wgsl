@@ -14,11 +14,13 @@
 // the texel's hemisphere the scene covers: how much of the light it reflects
 // lands on other surfaces. No texel blocked means no surface sees another.
 @group(0) @binding(5) var<storage, read_write> coverage: array<vec2f>;
-// The batch's shadow maps, tiled `tiles_per_row` to a row: the first
-// surface along each light, and the nearest surface behind it (the end of
-// the solid a ray entering the first would pass through).
-@group(0) @binding(4) var depth_maps: texture_depth_2d;
-@group(0) @binding(6) var second_layer: texture_depth_2d;
+// The batch's shadow maps, tiled `tiles_per_row` to a row, in two layers:
+// the first surface along each light (FRONT), and the nearest surface
+// behind it (BEHIND: the end of the solid a ray entering the first would
+// pass through).
+@group(0) @binding(4) var depth_maps: texture_depth_2d_array;
+const FRONT: u32 = 0u;
+const BEHIND: u32 = 1u;
 
 
 // Longest sideways march of a shadow ray, shadow-map texels: a light
@@ -84,9 +86,10 @@ struct Receiver {
     rise: vec3f,           // height above the receiver's tangent plane per shadow-map texel (x, y) and unit of depth
 }
 
-// Whether the receiver is lit as seen by the shadow-map texel holding `at`
-// (pixel units). The depth map holds the depth of the first surface at each
-// texel's centre. Where that is the receiver's own plane (carried from the
+// The depth of the surface the depth map holds at `at` (pixel units),
+// where it blocks the receiver, or −1 where the receiver is lit as seen by
+// that shadow-map texel. The depth map holds the depth of the first surface
+// at each texel's centre. Where that is the receiver's own plane (carried from the
 // receiver to the centre along `slope`: receiver-plane depth bias), the
 // texel shows the receiver itself: lit, at any tilt, with no large constant
 // bias. Anything else there is compared with the receiver's own depth: in
@@ -94,15 +97,9 @@ struct Receiver {
 // geometry that meets the receiver (a wall under a ceiling, a box on a
 // floor), and carrying the plane alone would see through such a corner
 // wherever the plane, extended, passes in front of the other surface.
-fn lit_at(at: vec2f, r: Receiver) -> bool {
-    return blocker_at(at, r) < 0.0;
-}
-
-// The depth of the surface the depth map holds at `at`, where it blocks
-// the receiver (as `lit_at`), or −1 where the receiver is lit there.
 fn blocker_at(at: vec2f, r: Receiver) -> f32 {
     let cell = map_cell(at);
-    let stored = textureLoad(depth_maps, cell + r.tile, 0);
+    let stored = depth_at(cell, r.tile);
     return select(stored, -1.0, lit_by(cell, stored, neighbour_depths(cell, r.tile), r));
 }
 
@@ -116,7 +113,7 @@ fn blocker_at(at: vec2f, r: Receiver) -> f32 {
 // surface that reaches into the cone.
 fn blocker_in_cone(at: vec2f, r: Receiver, sideways: f32, depth_to_texels: f32) -> f32 {
     let cell = map_cell(at);
-    let stored = textureLoad(depth_maps, cell + r.tile, 0);
+    let stored = depth_at(cell, r.tile);
     let height = dot(r.rise, vec3f(vec2f(cell) + 0.5 - r.surface_pixel, stored - r.surface_z));
     if (height <= ABOVE_PLANE) {
         return -1.0;
@@ -129,7 +126,7 @@ fn blocker_in_cone(at: vec2f, r: Receiver, sideways: f32, depth_to_texels: f32) 
 }
 
 // Whether the receiver is lit past the surface the depth map holds at
-// texel `cell`, depth `stored` (as `lit_at`).
+// texel `cell`, depth `stored` (as `blocker_at`).
 fn lit_by(cell: vec2<i32>, stored: f32, n: vec4f, r: Receiver) -> bool {
     if (r.z <= stored + r.bias && !covers_receiver(vec2f(cell), stored, stored_slope(stored, n), r)) {
         return true;
@@ -243,13 +240,13 @@ fn plane_side(cell: vec2<i32>, towards: i32, stored: f32, near: vec2f, r: Receiv
 
 // The first-layer depth at texel `at` of the light's tile, clamped to the map.
 fn depth_at(at: vec2<i32>, tile: vec2<i32>) -> f32 {
-    return layer_depth_at(depth_maps, at, tile);
+    return layer_depth_at(FRONT, at, tile);
 }
 
 // As `depth_at`, of either layer.
-fn layer_depth_at(layer: texture_depth_2d, at: vec2<i32>, tile: vec2<i32>) -> f32 {
+fn layer_depth_at(layer: u32, at: vec2<i32>, tile: vec2<i32>) -> f32 {
     let hi = vec2<i32>(i32(params.map_size) - 1);
-    return textureLoad(layer, clamp(at, vec2<i32>(0), hi) + tile, 0);
+    return textureLoad(depth_maps, clamp(at, vec2<i32>(0), hi) + tile, layer, 0);
 }
 
 // Whether the surface of the neighbouring texel (depth `near`, and `far`
@@ -263,11 +260,11 @@ fn apart(stored: f32, near: f32, far: f32, tolerance: f32) -> bool {
 // First-layer depths of the texels left, right, above and below `cell`
 // (clamped to the map), as x, y, z, w.
 fn neighbour_depths(cell: vec2<i32>, tile: vec2<i32>) -> vec4f {
-    return layer_neighbour_depths(depth_maps, cell, tile);
+    return layer_neighbour_depths(FRONT, cell, tile);
 }
 
 // As `neighbour_depths`, of either layer.
-fn layer_neighbour_depths(layer: texture_depth_2d, cell: vec2<i32>, tile: vec2<i32>) -> vec4f {
+fn layer_neighbour_depths(layer: u32, cell: vec2<i32>, tile: vec2<i32>) -> vec4f {
     return vec4f(
         layer_depth_at(layer, cell - vec2<i32>(1, 0), tile),
         layer_depth_at(layer, cell + vec2<i32>(1, 0), tile),
@@ -283,55 +280,81 @@ fn same_slope(mine: vec3f, theirs: vec2f) -> bool {
     return dot(mine, other) >= 0.9 * length(mine) * length(other);
 }
 
-// Whether a shadow ray's point `at` at depth `z` is clear of the scene.
-// A point at the end of a ray (`interior` false) is clear in front of the
-// first surface the depth map holds there, or on the receiver's own plane
-// (as `lit_by`). A point inside a marched ray (`interior`) is clear
-// unless it lies inside the solid the depth maps bound there: behind the
-// first surface (and not the receiver's plane) and in front of the second,
-// each widened by the first surface's own depth change across a texel and
-// by half the ray's depth step (`half_step`; 0 outside a march). The
-// widening makes a ray crossing a thin slab between two points still have
-// one point inside; taking half a step on each side, not a whole one
-// behind, keeps the crossing where it is: a whole step behind moved each
-// slab edge a step along the rays, and narrowed a wide penumbra, its lit
-// side most (tests/shadow.rs, the wide sun). A march's last point, at the
-// farthest blocker's depth, takes the half step in front too: it lies on
-// that blocker where the ray meets it. A point behind the second layer
-// passes behind the object, as a ray from the shadow of a post passes
-// beside the post.
-//
-// Where the first surface is a sheet (an open surface, `on_sheet`), no
-// solid lies behind it: a point inside a march is blocked only within the
-// sheet's band, and then by what the second layer holds (`behind_sheet`).
-fn ray_point_clear(at: vec2f, r: Receiver, z: f32, interior: bool, half_step: f32) -> bool {
+// One depth layer where a shadow ray's point `at` is: the texel holding it,
+// the depth there, the stored surface's slope, whether that surface is the
+// receiver's own plane, and the point's offset from the texel's centre.
+struct LayerAt {
+    cell: vec2<i32>,
+    stored: f32,
+    slope: vec2f,
+    on_plane: bool,
+    centre: vec2f,
+}
+
+fn layer_at(layer: u32, at: vec2f, r: Receiver) -> LayerAt {
     let cell = map_cell(at);
-    let stored = textureLoad(depth_maps, cell + r.tile, 0);
-    let n = neighbour_depths(cell, r.tile);
-    let slope = stored_slope(stored, n);
+    let stored = layer_depth_at(layer, cell, r.tile);
+    let n = layer_neighbour_depths(layer, cell, r.tile);
+    let on_plane = on_receiver_plane(vec2f(cell), stored, n, r);
+    return LayerAt(cell, stored, stored_slope(stored, n), on_plane, at - (vec2f(cell) + 0.5));
+}
+
+// What the first layer says of a shadow ray's point (`front_verdict`).
+const POINT_CLEAR: u32 = 0u;
+const POINT_BLOCKED: u32 = 1u;
+// Behind the first surface, inside a march: the second layer decides.
+const POINT_BEHIND: u32 = 2u;
+
+// Whether a shadow ray's point at depth `z` is clear of the scene, as far
+// as the first layer (`front`, where the point is) tells. A point at the
+// end of a ray (`interior` false) is clear in front of the first surface
+// the depth map holds there, or on the receiver's own plane (as `lit_by`).
+// A point inside a marched ray (`interior`) is clear there too; behind the
+// first surface, `behind_verdict` decides. Either is widened by the first
+// surface's own depth change across a texel and by half the ray's depth
+// step (`half_step`; 0 outside a march). The widening makes a ray crossing
+// a thin slab between two points still have one point inside; taking half
+// a step on each side, not a whole one behind, keeps the crossing where it
+// is: a whole step behind moved each slab edge a step along the rays, and
+// narrowed a wide penumbra, its lit side most (tests/shadow.rs, the wide
+// sun). A march's last point, at the farthest blocker's depth, takes the
+// half step in front too: it lies on that blocker where the ray meets it.
+fn front_verdict(front: LayerAt, r: Receiver, z: f32, interior: bool, half_step: f32) -> u32 {
     // The surface's depth change across a texel. Inside a march, a point
     // within the texel's depth range (a surface seen at a grazing angle
     // spans many texels of depth) may be on either side: not clear, unless
     // the surface is the receiver's own plane.
-    let across = select(0.0, max(abs(slope.x), abs(slope.y)), interior);
+    let across = select(0.0, max(abs(front.slope.x), abs(front.slope.y)), interior);
     // At the receiver's own depth, a surface it nearly touches from behind
     // blocks however little it lies in front (`covers_receiver`).
-    let covered = z >= r.z && covers_receiver(vec2f(cell), stored, slope, r);
+    let covered = z >= r.z && covers_receiver(vec2f(front.cell), front.stored, front.slope, r);
     // A ray's last point against a sheet where the point is (below).
-    let centre = at - (vec2f(cell) + 0.5);
-    let surface = select(stored, stored + dot(slope, centre), on_sheet(stored) && !interior);
-    if (z <= surface + r.bias - across - half_step && !covered) {
-        return true;
+    let sheet_end = on_sheet(front.stored) && !interior;
+    let surface = select(front.stored, front.stored + dot(front.slope, front.centre), sheet_end);
+    if ((z <= surface + r.bias - across - half_step && !covered) || front.on_plane) {
+        return POINT_CLEAR;
     }
-    if (on_receiver_plane(vec2f(cell), stored, n, r)) {
-        return true;
-    }
-    if (!interior) {
-        return false;
-    }
-    let back = textureLoad(second_layer, cell + r.tile, 0);
-    if (!on_sheet(stored)) {
-        return !(z <= back + half_step + across + r.bias);
+    return select(POINT_BLOCKED, POINT_BEHIND, interior);
+}
+
+// Whether a march's point at depth `z`, behind the first surface (`front`,
+// where `front_verdict` left it), is clear, from the second layer there
+// (`back`). It is clear unless it lies inside the solid the two layers
+// bound: a point behind the second layer (widened as in `front_verdict`)
+// passes behind the object, as a ray from the shadow of a post passes
+// beside the post.
+//
+// Where the first surface is a sheet (an open surface, `on_sheet`), no
+// solid lies behind it: the point is blocked only within the sheet's band,
+// and then by what the second layer holds. A sheet there blocks within its
+// band too, unless it is the receiver's plane. A closed surface there (a
+// solid standing behind the sheet, a sealed room's wall) blocks from its
+// band on: its far side is in no layer, and a ray from inside it must not
+// get out.
+fn behind_verdict(front: LayerAt, back: LayerAt, r: Receiver, z: f32, half_step: f32) -> bool {
+    let across = max(abs(front.slope.x), abs(front.slope.y));
+    if (!on_sheet(front.stored)) {
+        return !(z <= back.stored + half_step + across + r.bias);
     }
     // The sheet's own depth where the point is: its band is narrow, and
     // its depth at the texel's centre may be a texel of slope off. Between
@@ -339,32 +362,19 @@ fn ray_point_clear(at: vec2f, r: Receiver, z: f32, interior: bool, half_step: f3
     // to twice `across`: behind the sheet the band takes that much, so that
     // a ray crossing a sloped sheet (a floor seen from below, a room's walls
     // and floor beyond it) keeps a point in it.
-    if (z <= stored + dot(slope, centre) + half_step + 2.0 * across + r.bias) {
+    if (z <= front.stored + dot(front.slope, front.centre) + half_step + 2.0 * across + r.bias) {
         return false;
     }
-    return behind_sheet(cell, centre, r, z, back, half_step);
-}
-
-// Whether a march's point at depth `z`, behind a sheet at texel `cell`
-// (`centre`: the point's offset from the texel's centre) and in front of
-// or in the second layer's surface there (depth `back`), is clear. A sheet
-// there blocks within its band too, unless it is the receiver's plane. A
-// closed surface there (a solid standing behind the sheet, a sealed room's
-// wall) blocks from its band on: its far side is in no layer, and a ray
-// from inside it must not get out.
-fn behind_sheet(cell: vec2<i32>, centre: vec2f, r: Receiver, z: f32, back: f32, half_step: f32) -> bool {
-    let n = layer_neighbour_depths(second_layer, cell, r.tile);
-    let slope = stored_slope(back, n);
-    let surface = back + dot(slope, centre) + r.bias;
-    let band = max(abs(slope.x), abs(slope.y)) + half_step;
+    let surface = back.stored + dot(back.slope, back.centre) + r.bias;
+    let band = max(abs(back.slope.x), abs(back.slope.y)) + half_step;
     if (z <= surface - band) {
         return true;
     }
     // Beyond the band: open space behind a sheet, inside a closed surface.
     if (z > surface + band) {
-        return on_sheet(back);
+        return on_sheet(back.stored);
     }
-    return on_receiver_plane(vec2f(cell), back, n, r);
+    return back.on_plane;
 }
 
 // How much of a distant light of angular radius atan(tan_alpha) reaches the
@@ -380,22 +390,26 @@ fn light_visibility(r: Receiver, tan_alpha: f32, nearest_depth: f32, spin: f32) 
     // How far sideways a rim ray has moved where it leaves the scene: no
     // blocker lies further out.
     let reach = max(r.z - nearest_depth, 0.0) * depth_to_texels;
-    if (reach < 0.75) {
-        return select(0.0, 1.0, lit_at(r.pixel, r));
-    }
     // The nearest blocker (deepest stored depth) within the filter's reach
-    // sets a percentage-closer filter's width.
+    // sets a percentage-closer filter's width. A light narrower than that
+    // (reach under 0.75 texel) takes the centre tap alone. The centre is the
+    // loop's last tap, not a test of its own before it: a CPU driver runs
+    // every test written, whether a lane needs it or not, but a loop only as
+    // long as one of its lanes does.
     let near_search = min(reach, PCF_LIMIT);
+    let taps = select(MIN_SEARCH_TAPS, 0u, reach < 0.75);
     var near_blocked = false;
     var nearest = 0.0;
-    for (var j = 0u; j <= MIN_SEARCH_TAPS; j++) {
-        // Tap MIN_SEARCH_TAPS is the centre.
-        let at = r.pixel + select(spiral(j, MIN_SEARCH_TAPS, spin) * near_search, vec2f(0.0), j == MIN_SEARCH_TAPS);
+    for (var j = 0u; j <= taps; j++) {
+        let at = r.pixel + select(spiral(j, MIN_SEARCH_TAPS, spin) * near_search, vec2f(0.0), j == taps);
         let blocker = blocker_at(at, r);
         if (blocker >= 0.0) {
             near_blocked = true;
             nearest = max(nearest, blocker);
         }
+    }
+    if (reach < 0.75) {
+        return select(1.0, 0.0, near_blocked);
     }
     if (!near_blocked && reach <= PCF_LIMIT) {
         return 1.0;
@@ -439,12 +453,13 @@ fn light_visibility(r: Receiver, tan_alpha: f32, nearest_depth: f32, spin: f32) 
     // A blocker close enough for a narrow penumbra (a contact, a wall
     // beside the receiver) keeps the filter: its taps are sealed against
     // walls seen edge-on, which matters most there.
+    // One call for both kinds of ray: a CPU driver would run each call.
     let nearest_span = (r.z - nearest) * depth_to_texels;
-    if (span <= PCF_LIMIT || nearest_span <= PCF_LIMIT) {
-        return ray_visibility(r, false, clamp(nearest_span, 0.5, PCF_LIMIT), nearest, spin);
-    }
+    let filtered = span <= PCF_LIMIT || nearest_span <= PCF_LIMIT;
     let march_span = min(span, MAX_MARCH);
-    return ray_visibility(r, true, march_span, r.z - march_span / depth_to_texels, spin);
+    let radius = select(march_span, clamp(nearest_span, 0.5, PCF_LIMIT), filtered);
+    let end_depth = select(r.z - march_span / depth_to_texels, nearest, filtered);
+    return ray_visibility(r, !filtered, radius, end_depth, spin);
 }
 
 // The share of MAX_RAYS shadow rays, spread over the light's disc, that
@@ -489,8 +504,14 @@ fn ray_visibility(r: Receiver, march: bool, radius: f32, end_depth: f32, spin: f
         var clear = true;
         // From the far end back: a ray is most often blocked there, where
         // it meets the blockers the search found (a sheet's band is only
-        // there), and the loop ends at its first blocked point.
-        for (var k = 0u; k < points && clear; k++) {
+        // there), and the loop ends at its first blocked point. A point
+        // the first layer leaves undecided takes a second turn of the loop,
+        // reading the second layer: a CPU driver reads every layer a turn
+        // names for all its lanes, and most points need only the first.
+        var k = 0u;
+        var behind = false;
+        var front: LayerAt;
+        while (k < points && clear) {
             let s = points - 1u - k;
             // The filter's points are a quarter, half and three quarters of
             // the way to the blocker, then the tap at the receiver's depth.
@@ -500,7 +521,18 @@ fn ray_visibility(r: Receiver, march: bool, radius: f32, end_depth: f32, spin: f
             let last = s + 1u == points;
             let z = select(mix(r.z, end_depth, t), select(r.z, end_depth, march), last);
             let at = select(r.pixel + t * offset, r.pixel + offset, last);
-            clear = ray_point_clear(at, r, z, march && !last, select(0.0, 0.5 * step_depth, march));
+            let half_step = select(0.0, 0.5 * step_depth, march);
+            let here = layer_at(select(FRONT, BEHIND, behind), at, r);
+            if (behind) {
+                clear = behind_verdict(front, here, r, z, half_step);
+                behind = false;
+            } else {
+                let verdict = front_verdict(here, r, z, march && !last, half_step);
+                clear = verdict != POINT_BLOCKED;
+                behind = verdict == POINT_BEHIND;
+                front = here;
+            }
+            k += select(1u, 0u, behind);
         }
         if (clear) {
             lit += 1.0;

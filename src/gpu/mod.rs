@@ -206,14 +206,30 @@ impl Gpu {
     /// A depth texture that is drawn into and then read by shaders
     /// (shadow maps, hemicubes).
     pub fn depth_target(&self, label: &str, width: u32, height: u32) -> wgpu::Texture {
-        self.render_target(label, width, height, wgpu::TextureFormat::Depth32Float)
+        self.depth_layers(label, width, height, 1)
+    }
+
+    /// As `depth_target`, with `layers` array layers.
+    pub fn depth_layers(&self, label: &str, width: u32, height: u32, layers: u32) -> wgpu::Texture {
+        self.render_target_layers(label, width, height, layers, wgpu::TextureFormat::Depth32Float)
     }
 
     /// A 2D texture a render pass writes and a later pass reads.
     pub fn render_target(&self, label: &str, width: u32, height: u32, format: wgpu::TextureFormat) -> wgpu::Texture {
+        self.render_target_layers(label, width, height, 1, format)
+    }
+
+    fn render_target_layers(
+        &self,
+        label: &str,
+        width: u32,
+        height: u32,
+        layers: u32,
+        format: wgpu::TextureFormat,
+    ) -> wgpu::Texture {
         self.device.create_texture(&wgpu::TextureDescriptor {
             label: Some(label),
-            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+            size: wgpu::Extent3d { width, height, depth_or_array_layers: layers },
             mip_level_count: 1,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
@@ -461,20 +477,30 @@ pub fn depth_texture_entry(binding: u32, stages: wgpu::ShaderStages) -> wgpu::Bi
     texture_2d_entry(binding, stages, wgpu::TextureSampleType::Depth)
 }
 
+/// As `depth_texture_entry`, for an array of depth layers.
+pub fn depth_array_texture_entry(binding: u32, stages: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+    texture_entry(binding, stages, wgpu::TextureSampleType::Depth, wgpu::TextureViewDimension::D2Array)
+}
+
 /// A bind-group-layout entry for a 2-D texture read with `textureLoad`.
 pub fn texture_2d_entry(
     binding: u32,
     stages: wgpu::ShaderStages,
     sample_type: wgpu::TextureSampleType,
 ) -> wgpu::BindGroupLayoutEntry {
+    texture_entry(binding, stages, sample_type, wgpu::TextureViewDimension::D2)
+}
+
+fn texture_entry(
+    binding: u32,
+    stages: wgpu::ShaderStages,
+    sample_type: wgpu::TextureSampleType,
+    view_dimension: wgpu::TextureViewDimension,
+) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: stages,
-        ty: wgpu::BindingType::Texture {
-            sample_type,
-            view_dimension: wgpu::TextureViewDimension::D2,
-            multisampled: false,
-        },
+        ty: wgpu::BindingType::Texture { sample_type, view_dimension, multisampled: false },
         count: None,
     }
 }

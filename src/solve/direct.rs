@@ -217,11 +217,24 @@ pub fn run(
         gpu.zeroed_storage_buffer::<[f32; 4]>("solve_direct irradiance", point_count, wgpu::BufferUsages::COPY_SRC);
     let tiles_per_row = (batch as f64).sqrt().ceil() as u32;
     let tile_rows = batch.div_ceil(tiles_per_row);
-    let depth_atlas =
-        |label| gpu.depth_target(label, size * tiles_per_row, size * tile_rows).create_view(&Default::default());
-    // The first surface along each light, and the nearest one behind it.
-    let front_view = depth_atlas("solve_depth maps");
-    let behind_view = depth_atlas("solve_depth second layer");
+    // The first surface along each light (layer 0), and the nearest one
+    // behind it (layer 1): one texture, so that the gather picks the layer
+    // it reads by index.
+    let depth_maps = gpu.depth_layers("solve_depth maps", size * tiles_per_row, size * tile_rows, 2);
+    let layer_view = |layer| {
+        depth_maps.create_view(&wgpu::TextureViewDescriptor {
+            dimension: Some(wgpu::TextureViewDimension::D2),
+            base_array_layer: layer,
+            array_layer_count: Some(1),
+            ..Default::default()
+        })
+    };
+    let front_view = layer_view(0);
+    let behind_view = layer_view(1);
+    let both_layers = depth_maps.create_view(&wgpu::TextureViewDescriptor {
+        dimension: Some(wgpu::TextureViewDimension::D2Array),
+        ..Default::default()
+    });
 
     let both = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE;
     let [materials_entry, textures_entry, sampler_entry] = Casters::layout_entries(2);
@@ -323,12 +336,10 @@ pub fn run(
             // 2: texels (read), 3: irradiance (accumulated)
             gpu::storage_entry(2, true, compute),
             gpu::storage_entry(3, false, compute),
-            // 4: the batch's depth maps
-            gpu::depth_texture_entry(4, compute),
+            // 4: the batch's depth maps, both layers
+            gpu::depth_array_texture_entry(4, compute),
             // 5: blocked and total Ω cos θ per texel (accumulated)
             gpu::storage_entry(5, false, compute),
-            // 6: the surfaces behind the first ones
-            gpu::depth_texture_entry(6, compute),
         ],
     });
     let gather_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -339,9 +350,8 @@ pub fn run(
             wgpu::BindGroupEntry { binding: 1, resource: lights_buffer.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 2, resource: texel_buffer.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 3, resource: irradiance.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&front_view) },
+            wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&both_layers) },
             wgpu::BindGroupEntry { binding: 5, resource: coverage.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 6, resource: wgpu::BindingResource::TextureView(&behind_view) },
         ],
     });
     let gather_pipeline = gpu.compute_pipeline(Shader::SolveDirect, "main", &[&gather_layout]);
