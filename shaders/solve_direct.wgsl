@@ -89,10 +89,10 @@ struct Receiver {
 // The depth of the surface the depth map holds at `at` (pixel units),
 // where it blocks the receiver, or −1 where the receiver is lit as seen by
 // that shadow-map texel. The depth map holds the depth of the first surface
-// at each texel's centre. Where that is the receiver's own plane (carried from the
-// receiver to the centre along `slope`: receiver-plane depth bias), the
-// texel shows the receiver itself: lit, at any tilt, with no large constant
-// bias. Anything else there is compared with the receiver's own depth: in
+// at each texel's centre. Where that is the receiver's own plane (carried
+// from the receiver to the centre along `slope`: receiver-plane depth
+// bias), the texel shows the receiver itself: lit, at any tilt, with no
+// large constant bias. Anything else there is compared with the receiver's own depth: in
 // front of it, it blocks. A plain slope-scaled bias would let light through
 // geometry that meets the receiver (a wall under a ceiling, a box on a
 // floor), and carrying the plane alone would see through such a corner
@@ -131,7 +131,7 @@ fn lit_by(cell: vec2<i32>, stored: f32, n: vec4f, r: Receiver) -> bool {
     if (r.z <= stored + r.bias && !covers_receiver(vec2f(cell), stored, stored_slope(stored, n), r)) {
         return true;
     }
-    return on_receiver_plane(vec2f(cell), stored, n, r);
+    return on_receiver_plane(FRONT, vec2f(cell), stored, n, r);
 }
 
 // Whether the first-layer depth `stored` is of a surface the light sees
@@ -190,10 +190,10 @@ fn map_cell(at: vec2f) -> vec2<i32> {
     return vec2<i32>(clamp(floor(at), vec2f(0.0), vec2f(size - 1.0)));
 }
 
-// Whether the surface the depth map holds at texel `cell` (depth `stored`,
-// its neighbours' `n` as `neighbour_depths` gives them) is the receiver's
-// own plane.
-fn on_receiver_plane(cell: vec2f, stored: f32, n: vec4f, r: Receiver) -> bool {
+// Whether the surface the depth map's `layer` holds at texel `cell` (depth
+// `stored`, its neighbours' `n` as `layer_neighbour_depths` gives them) is
+// the receiver's own plane.
+fn on_receiver_plane(layer: u32, cell: vec2f, stored: f32, n: vec4f, r: Receiver) -> bool {
     // Only a plane facing the light can be the receiver seen from it (from
     // behind, a zero-thickness wall stands between them), and only a surface
     // seen from the front.
@@ -220,7 +220,7 @@ fn on_receiver_plane(cell: vec2f, stored: f32, n: vec4f, r: Receiver) -> bool {
     // surface meeting the receiver there lies in front of the plane and runs
     // on into the texel where they meet.
     let c = vec2<i32>(cell);
-    return plane_side(c, 1, stored, n.yw, r, tolerance) && plane_side(c, -1, stored, n.xz, r, tolerance);
+    return plane_side(layer, c, 1, stored, n.yw, r, tolerance) && plane_side(layer, c, -1, stored, n.xz, r, tolerance);
 }
 
 // Whether the side `towards` (+1: right and down, −1: left and up) of texel
@@ -228,14 +228,14 @@ fn on_receiver_plane(cell: vec2f, stored: f32, n: vec4f, r: Receiver) -> bool {
 // junction, as `on_receiver_plane` needs: the stored surface keeps the
 // receiver's slope towards the side, or a neighbour lies behind the plane
 // carried on, or holds a surface that does not continue into the texel.
-fn plane_side(cell: vec2<i32>, towards: i32, stored: f32, near: vec2f, r: Receiver, tolerance: f32) -> bool {
+fn plane_side(layer: u32, cell: vec2<i32>, towards: i32, stored: f32, near: vec2f, r: Receiver, tolerance: f32) -> bool {
     let size = params.map_size;
     let step = f32(towards);
     let far = vec2<i32>(2 * towards, 0);
     return same_slope(vec3f(r.slope * size, -1.0), (near - stored) * step * size)
         || any(near > stored + step * r.slope + tolerance)
-        || apart(stored, near.x, depth_at(cell + far, r.tile), tolerance)
-        || apart(stored, near.y, depth_at(cell + far.yx, r.tile), tolerance);
+        || apart(stored, near.x, layer_depth_at(layer, cell + far, r.tile), tolerance)
+        || apart(stored, near.y, layer_depth_at(layer, cell + far.yx, r.tile), tolerance);
 }
 
 // The first-layer depth at texel `at` of the light's tile, clamped to the map.
@@ -295,7 +295,7 @@ fn layer_at(layer: u32, at: vec2f, r: Receiver) -> LayerAt {
     let cell = map_cell(at);
     let stored = layer_depth_at(layer, cell, r.tile);
     let n = layer_neighbour_depths(layer, cell, r.tile);
-    let on_plane = on_receiver_plane(vec2f(cell), stored, n, r);
+    let on_plane = on_receiver_plane(layer, vec2f(cell), stored, n, r);
     return LayerAt(cell, stored, stored_slope(stored, n), on_plane, at - (vec2f(cell) + 0.5));
 }
 
