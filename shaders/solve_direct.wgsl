@@ -86,52 +86,122 @@ struct Receiver {
     rise: vec3f,           // height above the receiver's tangent plane per shadow-map texel (x, y) and unit of depth
 }
 
-// The depth of the surface the depth map holds at `at` (pixel units),
-// where it blocks the receiver, or −1 where the receiver is lit as seen by
-// that shadow-map texel. The depth map holds the depth of the first surface
-// at each texel's centre. Where that is the receiver's own plane (carried
-// from the receiver to the centre along `slope`: receiver-plane depth
-// bias), the texel shows the receiver itself: lit, at any tilt, with no
-// large constant bias. Anything else there is compared with the receiver's own depth: in
-// front of it, it blocks. A plain slope-scaled bias would let light through
-// geometry that meets the receiver (a wall under a ceiling, a box on a
-// floor), and carrying the plane alone would see through such a corner
-// wherever the plane, extended, passes in front of the other surface.
-fn blocker_at(at: vec2f, r: Receiver) -> f32 {
-    let cell = map_cell(at);
-    let stored = depth_at(cell, r.tile);
-    return select(stored, -1.0, lit_by(cell, stored, neighbour_depths(cell, r.tile), r));
+// What one turn of a blocker search's or a shadow ray's loop settles for
+// its tap or point. A turn reads the depth at a shadow-map texel and the
+// four beside it (`read_cross`). Where the surface there meets the
+// receiver's plane, that can leave open whether it is the plane
+// (`plane_near`); a second turn then reads the depths two texels out
+// (ASK_FAR). A CPU driver reads every texture a turn names for all its
+// lanes, whether a lane needs it or not, and few taps need those.
+const CLEAR: u32 = 0u;
+const BLOCKED: u32 = 1u;
+// A march's point behind the first surface: the second layer decides.
+const BEHIND_FIRST: u32 = 2u;
+const ASK_FAR: u32 = 3u;
+
+// The depth a layer holds at a shadow-map texel, and at the four texels
+// some distance out along x and y: left, right, above, below.
+struct Cross {
+    centre: f32,
+    arms: vec4f,
 }
 
-// As `blocker_at` for a tap `sideways` shadow-map texels from the receiver,
-// but only a blocker that some ray within the light's cone (which moves
-// `depth_to_texels` sideways per unit of depth) can reach: one further out
-// than its depth in front of the receiver lets it is no blocker of this
-// light, however far in front it lies (a wall seen at a grazing angle, the
-// receiver's own surface curving up). The surface's depth change across
-// the texel and a texel of sideways slack keep a slanted or edge-on
-// surface that reaches into the cone.
-fn blocker_in_cone(at: vec2f, r: Receiver, sideways: f32, depth_to_texels: f32) -> f32 {
-    let cell = map_cell(at);
-    let stored = depth_at(cell, r.tile);
-    let height = dot(r.rise, vec3f(vec2f(cell) + 0.5 - r.surface_pixel, stored - r.surface_z));
-    if (height <= ABOVE_PLANE) {
-        return -1.0;
+// The depths at texel `cell` of the light's tile and `reach` texels out
+// from it, clamped to the map.
+fn read_cross(layer: u32, cell: vec2<i32>, tile: vec2<i32>, reach: i32) -> Cross {
+    let arms = vec4f(
+        layer_depth_at(layer, cell - vec2<i32>(reach, 0), tile),
+        layer_depth_at(layer, cell + vec2<i32>(reach, 0), tile),
+        layer_depth_at(layer, cell - vec2<i32>(0, reach), tile),
+        layer_depth_at(layer, cell + vec2<i32>(0, reach), tile),
+    );
+    return Cross(layer_depth_at(layer, cell, tile), arms);
+}
+
+// The depth of a layer at texel `at` of the light's tile, clamped to the map.
+fn layer_depth_at(layer: u32, at: vec2<i32>, tile: vec2<i32>) -> f32 {
+    let hi = vec2<i32>(i32(params.map_size) - 1);
+    return textureLoad(depth_maps, clamp(at, vec2<i32>(0), hi) + tile, layer, 0);
+}
+
+// Whether the receiver is lit as seen by the shadow-map texel `cell`, which
+// holds the first surface at depth `near.centre` (its neighbours' depths
+// `near.arms`): CLEAR, BLOCKED, or ASK_FAR. The depth map holds the depth
+// of the first surface at each texel's centre. Where that is the
+// receiver's own plane (carried from the receiver to the centre along
+// `slope`: receiver-plane depth bias), the texel shows the receiver
+// itself: lit, at any tilt, with no large constant bias. Anything else
+// there is compared with the receiver's own depth: in front of it, it
+// blocks. A plain slope-scaled bias would let light through geometry that
+// meets the receiver (a wall under a ceiling, a box on a floor), and
+// carrying the plane alone would see through such a corner wherever the
+// plane, extended, passes in front of the other surface.
+fn tap_verdict(cell: vec2<i32>, near: Cross, r: Receiver) -> u32 {
+    let stored = near.centre;
+    if (r.z <= stored + r.bias && !covers_receiver(vec2f(cell), stored, stored_slope(stored, near.arms), r)) {
+        return CLEAR;
     }
-    let n = neighbour_depths(cell, r.tile);
-    let slope = stored_slope(stored, n);
+    let plane = plane_near(vec2f(cell), stored, near.arms, r);
+    return select(select(BLOCKED, CLEAR, plane == PLANE_YES), ASK_FAR, plane == ASK_FAR);
+}
+
+// As `tap_verdict` for a tap `sideways` shadow-map texels from the
+// receiver, but only a blocker that some ray within the light's cone
+// (which moves `depth_to_texels` sideways per unit of depth) can reach:
+// one further out than its depth in front of the receiver lets it is no
+// blocker of this light, however far in front it lies (a wall seen at a
+// grazing angle, the receiver's own surface curving up). The surface's
+// depth change across the texel and a texel of sideways slack keep a
+// slanted or edge-on surface that reaches into the cone.
+fn cone_verdict(cell: vec2<i32>, near: Cross, r: Receiver, sideways: f32, depth_to_texels: f32) -> u32 {
+    let stored = near.centre;
+    let height = dot(r.rise, vec3f(vec2f(cell) + 0.5 - r.surface_pixel, stored - r.surface_z));
+    let slope = stored_slope(stored, near.arms);
     let nearest_part = stored - max(abs(slope.x), abs(slope.y));
     let reachable = sideways <= (r.z - nearest_part) * depth_to_texels + 1.0;
-    return select(-1.0, stored, reachable && !lit_by(cell, stored, n, r));
+    if (height <= ABOVE_PLANE || !reachable) {
+        return CLEAR;
+    }
+    return tap_verdict(cell, near, r);
 }
 
-// Whether the receiver is lit past the surface the depth map holds at
-// texel `cell`, depth `stored` (as `blocker_at`).
-fn lit_by(cell: vec2<i32>, stored: f32, n: vec4f, r: Receiver) -> bool {
-    if (r.z <= stored + r.bias && !covers_receiver(vec2f(cell), stored, stored_slope(stored, n), r)) {
-        return true;
+// What a blocker search found: whether a tap was blocked, and the depth
+// of the deepest blocker (the disc) or the shallowest (the ring).
+struct Search {
+    blocked: bool,
+    depth: f32,
+}
+
+// A blocker search of `taps` taps around the receiver: on the disc of
+// radius `outer` (`disc`; taps as `tap_verdict` takes them, then the
+// centre), or on the ring between `inner` and `outer` (as `cone_verdict`).
+// The ring's depth starts at the receiver's own.
+fn search_blockers(r: Receiver, disc: bool, taps: u32, inner: f32, outer: f32, spin: f32, depth_to_texels: f32) -> Search {
+    var found = Search(false, select(r.z, 0.0, disc));
+    // Past the last tap on the disc comes its centre.
+    let turns = select(taps, taps + 1u, disc);
+    var j = 0u;
+    var far_turn = false;
+    var near: Cross;
+    while (j < turns) {
+        let tap = select(ring_tap(j, taps, inner, outer, spin), spiral(j, taps, spin) * outer, disc);
+        let cell = map_cell(r.pixel + select(tap, vec2f(0.0), disc && j == taps));
+        let read = read_cross(FRONT, cell, r.tile, select(1, 2, far_turn));
+        var verdict: u32;
+        if (far_turn) {
+            verdict = select(BLOCKED, CLEAR, plane_far(vec2f(cell), near.centre, near.arms, read.arms, r));
+        } else {
+            near = read;
+            verdict = select(cone_verdict(cell, read, r, length(tap), depth_to_texels), tap_verdict(cell, read, r), disc);
+        }
+        if (verdict == BLOCKED) {
+            found.blocked = true;
+            found.depth = select(min(found.depth, near.centre), max(found.depth, near.centre), disc);
+        }
+        far_turn = verdict == ASK_FAR;
+        j += select(1u, 0u, far_turn);
     }
-    return on_receiver_plane(FRONT, vec2f(cell), stored, n, r);
+    return found;
 }
 
 // Whether the first-layer depth `stored` is of a surface the light sees
@@ -148,16 +218,16 @@ fn on_sheet(stored: f32) -> bool {
 }
 
 // Whether the surface the depth map holds at texel `cell` (depth `stored`,
-// neighbours `n` as `neighbour_depths` gives them) turns its back to the
+// slope `slope` as `stored_slope` gives it) turns its back to the
 // light in front of the receiver's surface point, or at it: a surface the
 // receiver nearly touches or touches, seen from behind (the floor under a
 // ball resting on it, lit from below). It is never the receiver itself (a
 // light behind the receiver's own face is blocked by it anyway), so it is
 // not carried along the receiver's plane and needs only a rounding
 // tolerance (whose sign its slope sets); but the test point, lifted a
-// shadow-map texel off the surface, may have passed it. The stored surface is carried
-// to the receiver's own map position along its slope (from its smoother
-// side): a floor seen at a grazing angle changes depth across a texel by
+// shadow-map texel off the surface, may have passed it. The stored surface
+// is carried to the receiver's own map position along its slope (from its
+// smoother side): a floor seen at a grazing angle changes depth across a texel by
 // far more than the millimetre under the ball.
 fn covers_receiver(cell: vec2f, stored: f32, slope: vec2f, r: Receiver) -> bool {
     let there = stored + dot(slope, r.surface_pixel - (cell + 0.5));
@@ -171,8 +241,8 @@ fn covers_receiver(cell: vec2f, stored: f32, slope: vec2f, r: Receiver) -> bool 
 }
 
 // The stored surface's depth change per texel along x and y, from the side
-// of the texel (depth `stored`, neighbours `n` as `neighbour_depths` gives
-// them) where it changes less: at a silhouette the other side is another
+// of the texel (depth `stored`, neighbours `n` as `read_cross` gives them a
+// texel out) where it changes less: at a silhouette the other side is another
 // surface.
 fn stored_slope(stored: f32, n: vec4f) -> vec2f {
     return vec2f(smoother(n.x, stored, n.y), smoother(n.z, stored, n.w));
@@ -190,63 +260,71 @@ fn map_cell(at: vec2f) -> vec2<i32> {
     return vec2<i32>(clamp(floor(at), vec2f(0.0), vec2f(size - 1.0)));
 }
 
-// Whether the surface the depth map's `layer` holds at texel `cell` (depth
-// `stored`, its neighbours' `n` as `layer_neighbour_depths` gives them) is
-// the receiver's own plane.
-fn on_receiver_plane(layer: u32, cell: vec2f, stored: f32, n: vec4f, r: Receiver) -> bool {
+// Whether the surface a depth layer holds at texel `cell` (depth `stored`,
+// its neighbours' `n` as `read_cross` gives them a texel out) is the
+// receiver's own plane: PLANE_YES, PLANE_NO, or ASK_FAR where that takes
+// the depths two texels out (`plane_far`).
+const PLANE_NO: u32 = 0u;
+const PLANE_YES: u32 = 1u;
+
+fn plane_near(cell: vec2f, stored: f32, n: vec4f, r: Receiver) -> u32 {
     // Only a plane facing the light can be the receiver seen from it (from
     // behind, a zero-thickness wall stands between them), and only a surface
     // seen from the front.
     if (!r.front || seen_from_behind(stored)) {
-        return false;
+        return PLANE_NO;
     }
-    // The receiver's plane, carried to this texel's centre. A curved surface
-    // leaves its tangent plane quadratically: the tolerance grows with the
-    // distance carried (a texel of depth at 4 texels, 16 at 16).
+    // The receiver's plane, carried to this texel's centre.
     let carried = cell + 0.5 - r.surface_pixel;
     let plane = r.surface_z + dot(r.slope, carried);
-    let tolerance = params.plane_tolerance * (1.0 + dot(carried, carried) / 8.0);
-    if (abs(stored - plane) > tolerance) {
-        return false;
+    if (abs(stored - plane) > plane_tolerance(cell, r)) {
+        return PLANE_NO;
     }
-    // Depth alone cannot tell the receiver's own tilted plane from another
-    // surface meeting it (a floor under a wall): their depths agree along
-    // the line where they meet. The stored surface's slope on both sides of
-    // this texel must be the receiver's: at such a junction one side is not.
-    // A side whose neighbour lies behind the plane carried on (a convex
-    // edge, or the plane's own edge against what lies beyond), or holds a
-    // surface that does not continue into this texel (the edge of a blocker
-    // well in front: the floor seen past a ball's rim) is no junction: a
-    // surface meeting the receiver there lies in front of the plane and runs
-    // on into the texel where they meet.
-    let c = vec2<i32>(cell);
-    return plane_side(layer, c, 1, stored, n.yw, r, tolerance) && plane_side(layer, c, -1, stored, n.xz, r, tolerance);
+    return select(ASK_FAR, PLANE_YES, all(sides_without_junction(cell, stored, n, r)));
 }
 
-// Whether the side `towards` (+1: right and down, −1: left and up) of texel
-// `cell` (depth `stored`, its neighbours there `near`, x then y) is no
-// junction, as `on_receiver_plane` needs: the stored surface keeps the
-// receiver's slope towards the side, or a neighbour lies behind the plane
-// carried on, or holds a surface that does not continue into the texel.
-fn plane_side(layer: u32, cell: vec2<i32>, towards: i32, stored: f32, near: vec2f, r: Receiver, tolerance: f32) -> bool {
+// How far a stored surface may lie from the receiver's plane carried to
+// texel `cell` and still be it. A curved surface leaves its tangent plane
+// quadratically: the tolerance grows with the distance carried (a texel of
+// depth at 4 texels, 16 at 16).
+fn plane_tolerance(cell: vec2f, r: Receiver) -> f32 {
+    let carried = cell + 0.5 - r.surface_pixel;
+    return params.plane_tolerance * (1.0 + dot(carried, carried) / 8.0);
+}
+
+// Depth alone cannot tell the receiver's own tilted plane from another
+// surface meeting it (a floor under a wall): their depths agree along the
+// line where they meet. The stored surface's slope on both sides of the
+// texel must be the receiver's: at such a junction one side is not. A side
+// whose neighbour lies behind the plane carried on (a convex edge, or the
+// plane's own edge against what lies beyond), or holds a surface that does
+// not continue into this texel (the edge of a blocker well in front: the
+// floor seen past a ball's rim) is no junction: a surface meeting the
+// receiver there lies in front of the plane and runs on into the texel
+// where they meet.
+//
+// Which sides (right and down, then left and up) the depths a texel out
+// (`n`) already show to be no junction: the surface keeps the receiver's
+// slope towards the side, or a neighbour lies behind the plane carried on.
+fn sides_without_junction(cell: vec2f, stored: f32, n: vec4f, r: Receiver) -> vec2<bool> {
     let size = params.map_size;
-    let step = f32(towards);
-    let far = vec2<i32>(2 * towards, 0);
-    return same_slope(vec3f(r.slope * size, -1.0), (near - stored) * step * size)
-        || any(near > stored + step * r.slope + tolerance)
-        || apart(stored, near.x, layer_depth_at(layer, cell + far, r.tile), tolerance)
-        || apart(stored, near.y, layer_depth_at(layer, cell + far.yx, r.tile), tolerance);
+    let tolerance = plane_tolerance(cell, r);
+    let mine = vec3f(r.slope * size, -1.0);
+    let after = same_slope(mine, (n.yw - stored) * size) || any(n.yw > stored + r.slope + tolerance);
+    let before = same_slope(mine, (n.xz - stored) * -1.0 * size) || any(n.xz > stored - r.slope + tolerance);
+    return vec2<bool>(after, before);
 }
 
-// The first-layer depth at texel `at` of the light's tile, clamped to the map.
-fn depth_at(at: vec2<i32>, tile: vec2<i32>) -> f32 {
-    return layer_depth_at(FRONT, at, tile);
-}
-
-// As `depth_at`, of either layer.
-fn layer_depth_at(layer: u32, at: vec2<i32>, tile: vec2<i32>) -> f32 {
-    let hi = vec2<i32>(i32(params.map_size) - 1);
-    return textureLoad(depth_maps, clamp(at, vec2<i32>(0), hi) + tile, layer, 0);
+// Whether the surface is the receiver's plane where `plane_near` left it
+// open, from the depths two texels out (`far`, as `read_cross` gives them):
+// a side is no junction either where a neighbour holds a surface that does
+// not continue into the texel.
+fn plane_far(cell: vec2f, stored: f32, n: vec4f, far: vec4f, r: Receiver) -> bool {
+    let tolerance = plane_tolerance(cell, r);
+    let sides = sides_without_junction(cell, stored, n, r);
+    let after = sides.x || apart(stored, n.y, far.y, tolerance) || apart(stored, n.w, far.w, tolerance);
+    let before = sides.y || apart(stored, n.x, far.x, tolerance) || apart(stored, n.z, far.z, tolerance);
+    return after && before;
 }
 
 // Whether the surface of the neighbouring texel (depth `near`, and `far`
@@ -257,22 +335,6 @@ fn apart(stored: f32, near: f32, far: f32, tolerance: f32) -> bool {
     return abs(stored - continued) > 2.0 * tolerance + 0.5 * abs(near - far);
 }
 
-// First-layer depths of the texels left, right, above and below `cell`
-// (clamped to the map), as x, y, z, w.
-fn neighbour_depths(cell: vec2<i32>, tile: vec2<i32>) -> vec4f {
-    return layer_neighbour_depths(FRONT, cell, tile);
-}
-
-// As `neighbour_depths`, of either layer.
-fn layer_neighbour_depths(layer: u32, cell: vec2<i32>, tile: vec2<i32>) -> vec4f {
-    return vec4f(
-        layer_depth_at(layer, cell - vec2<i32>(1, 0), tile),
-        layer_depth_at(layer, cell + vec2<i32>(1, 0), tile),
-        layer_depth_at(layer, cell - vec2<i32>(0, 1), tile),
-        layer_depth_at(layer, cell + vec2<i32>(0, 1), tile),
-    );
-}
-
 // Whether a stored surface with depth slope `theirs` (per texel, scaled to
 // texels of depth) is parallel to the receiver's plane within about 25°.
 fn same_slope(mine: vec3f, theirs: vec2f) -> bool {
@@ -280,37 +342,30 @@ fn same_slope(mine: vec3f, theirs: vec2f) -> bool {
     return dot(mine, other) >= 0.9 * length(mine) * length(other);
 }
 
-// One depth layer where a shadow ray's point `at` is: the texel holding it,
-// the depth there, the stored surface's slope, whether that surface is the
-// receiver's own plane, and the point's offset from the texel's centre.
+// One depth layer where a shadow ray's point is: the texel holding it, the
+// depths there and a texel out, the stored surface's slope, whether that
+// surface is the receiver's own plane (PLANE_YES, PLANE_NO, or ASK_FAR),
+// and the point's offset from the texel's centre.
 struct LayerAt {
     cell: vec2<i32>,
-    stored: f32,
+    near: Cross,
     slope: vec2f,
-    on_plane: bool,
+    plane: u32,
     centre: vec2f,
 }
 
-fn layer_at(layer: u32, at: vec2f, r: Receiver) -> LayerAt {
-    let cell = map_cell(at);
-    let stored = layer_depth_at(layer, cell, r.tile);
-    let n = layer_neighbour_depths(layer, cell, r.tile);
-    let on_plane = on_receiver_plane(layer, vec2f(cell), stored, n, r);
-    return LayerAt(cell, stored, stored_slope(stored, n), on_plane, at - (vec2f(cell) + 0.5));
+fn layer_at(cell: vec2<i32>, near: Cross, at: vec2f, r: Receiver) -> LayerAt {
+    let plane = plane_near(vec2f(cell), near.centre, near.arms, r);
+    return LayerAt(cell, near, stored_slope(near.centre, near.arms), plane, at - (vec2f(cell) + 0.5));
 }
 
-// What the first layer says of a shadow ray's point (`front_verdict`).
-const POINT_CLEAR: u32 = 0u;
-const POINT_BLOCKED: u32 = 1u;
-// Behind the first surface, inside a march: the second layer decides.
-const POINT_BEHIND: u32 = 2u;
-
 // Whether a shadow ray's point at depth `z` is clear of the scene, as far
-// as the first layer (`front`, where the point is) tells. A point at the
-// end of a ray (`interior` false) is clear in front of the first surface
-// the depth map holds there, or on the receiver's own plane (as `lit_by`).
-// A point inside a marched ray (`interior`) is clear there too; behind the
-// first surface, `behind_verdict` decides. Either is widened by the first
+// as the first layer (`front`, where the point is) tells: CLEAR, BLOCKED,
+// BEHIND_FIRST, or ASK_FAR. A point at the end of a ray (`interior` false)
+// is clear in front of the first surface the depth map holds there, or on
+// the receiver's own plane (as `tap_verdict`). A point inside a marched
+// ray (`interior`) is clear there too; behind the first surface,
+// `behind_verdict` decides. Either is widened by the first
 // surface's own depth change across a texel and by half the ray's depth
 // step (`half_step`; 0 outside a march). The widening makes a ray crossing
 // a thin slab between two points still have one point inside; taking half
@@ -324,22 +379,27 @@ fn front_verdict(front: LayerAt, r: Receiver, z: f32, interior: bool, half_step:
     // within the texel's depth range (a surface seen at a grazing angle
     // spans many texels of depth) may be on either side: not clear, unless
     // the surface is the receiver's own plane.
+    let stored = front.near.centre;
     let across = select(0.0, max(abs(front.slope.x), abs(front.slope.y)), interior);
     // At the receiver's own depth, a surface it nearly touches from behind
     // blocks however little it lies in front (`covers_receiver`).
-    let covered = z >= r.z && covers_receiver(vec2f(front.cell), front.stored, front.slope, r);
+    let covered = z >= r.z && covers_receiver(vec2f(front.cell), stored, front.slope, r);
     // A ray's last point against a sheet where the point is (below).
-    let sheet_end = on_sheet(front.stored) && !interior;
-    let surface = select(front.stored, front.stored + dot(front.slope, front.centre), sheet_end);
-    if ((z <= surface + r.bias - across - half_step && !covered) || front.on_plane) {
-        return POINT_CLEAR;
+    let sheet_end = on_sheet(stored) && !interior;
+    let surface = select(stored, stored + dot(front.slope, front.centre), sheet_end);
+    if ((z <= surface + r.bias - across - half_step && !covered) || front.plane == PLANE_YES) {
+        return CLEAR;
     }
-    return select(POINT_BLOCKED, POINT_BEHIND, interior);
+    if (front.plane == ASK_FAR) {
+        return ASK_FAR;
+    }
+    return select(BLOCKED, BEHIND_FIRST, interior);
 }
 
 // Whether a march's point at depth `z`, behind the first surface (`front`,
 // where `front_verdict` left it), is clear, from the second layer there
-// (`back`). It is clear unless it lies inside the solid the two layers
+// (`back`): CLEAR, BLOCKED, or ASK_FAR. It is clear unless it lies inside
+// the solid the two layers
 // bound: a point behind the second layer (widened as in `front_verdict`)
 // passes behind the object, as a ray from the shadow of a post passes
 // beside the post.
@@ -351,10 +411,12 @@ fn front_verdict(front: LayerAt, r: Receiver, z: f32, interior: bool, half_step:
 // solid standing behind the sheet, a sealed room's wall) blocks from its
 // band on: its far side is in no layer, and a ray from inside it must not
 // get out.
-fn behind_verdict(front: LayerAt, back: LayerAt, r: Receiver, z: f32, half_step: f32) -> bool {
+fn behind_verdict(front: LayerAt, back: LayerAt, r: Receiver, z: f32, half_step: f32) -> u32 {
+    let stored = front.near.centre;
+    let behind = back.near.centre;
     let across = max(abs(front.slope.x), abs(front.slope.y));
-    if (!on_sheet(front.stored)) {
-        return !(z <= back.stored + half_step + across + r.bias);
+    if (!on_sheet(stored)) {
+        return select(CLEAR, BLOCKED, z <= behind + half_step + across + r.bias);
     }
     // The sheet's own depth where the point is: its band is narrow, and
     // its depth at the texel's centre may be a texel of slope off. Between
@@ -362,19 +424,19 @@ fn behind_verdict(front: LayerAt, back: LayerAt, r: Receiver, z: f32, half_step:
     // to twice `across`: behind the sheet the band takes that much, so that
     // a ray crossing a sloped sheet (a floor seen from below, a room's walls
     // and floor beyond it) keeps a point in it.
-    if (z <= front.stored + dot(front.slope, front.centre) + half_step + 2.0 * across + r.bias) {
-        return false;
+    if (z <= stored + dot(front.slope, front.centre) + half_step + 2.0 * across + r.bias) {
+        return BLOCKED;
     }
-    let surface = back.stored + dot(back.slope, back.centre) + r.bias;
+    let surface = behind + dot(back.slope, back.centre) + r.bias;
     let band = max(abs(back.slope.x), abs(back.slope.y)) + half_step;
     if (z <= surface - band) {
-        return true;
+        return CLEAR;
     }
     // Beyond the band: open space behind a sheet, inside a closed surface.
     if (z > surface + band) {
-        return on_sheet(back.stored);
+        return select(BLOCKED, CLEAR, on_sheet(behind));
     }
-    return back.on_plane;
+    return select(select(BLOCKED, CLEAR, back.plane == PLANE_YES), ASK_FAR, back.plane == ASK_FAR);
 }
 
 // How much of a distant light of angular radius atan(tan_alpha) reaches the
@@ -398,16 +460,9 @@ fn light_visibility(r: Receiver, tan_alpha: f32, nearest_depth: f32, spin: f32) 
     // long as one of its lanes does.
     let near_search = min(reach, PCF_LIMIT);
     let taps = select(MIN_SEARCH_TAPS, 0u, reach < 0.75);
-    var near_blocked = false;
-    var nearest = 0.0;
-    for (var j = 0u; j <= taps; j++) {
-        let at = r.pixel + select(spiral(j, MIN_SEARCH_TAPS, spin) * near_search, vec2f(0.0), j == taps);
-        let blocker = blocker_at(at, r);
-        if (blocker >= 0.0) {
-            near_blocked = true;
-            nearest = max(nearest, blocker);
-        }
-    }
+    let near = search_blockers(r, true, taps, 0.0, near_search, spin, depth_to_texels);
+    let near_blocked = near.blocked;
+    var nearest = near.depth;
     if (reach < 0.75) {
         return select(1.0, 0.0, near_blocked);
     }
@@ -428,16 +483,9 @@ fn light_visibility(r: Receiver, tan_alpha: f32, nearest_depth: f32, spin: f32) 
         let inner = select(0.0, near_search, !near_blocked);
         let dense = clamp(u32(search * search / 3.0), MIN_SEARCH_TAPS, MAX_SEARCH_TAPS);
         let search_taps = select(MIN_SEARCH_TAPS, dense, near_blocked);
-        var farthest = r.z;
-        var far_blocked = false;
-        for (var j = 0u; j < search_taps; j++) {
-            let tap = ring_tap(j, search_taps, inner, search, spin + 2.0);
-            let blocker = blocker_in_cone(r.pixel + tap, r, length(tap), depth_to_texels);
-            if (blocker >= 0.0) {
-                far_blocked = true;
-                farthest = min(farthest, blocker);
-            }
-        }
+        let far = search_blockers(r, false, search_taps, inner, search, spin + 2.0, depth_to_texels);
+        let far_blocked = far.blocked;
+        var farthest = far.depth;
         // A penumbra wider than MAX_MARCH is marched narrower than it is,
         // its inner part too dark; lighting its outer part beyond the first
         // search keeps its sum (an independent tracer agrees better so).
@@ -505,12 +553,14 @@ fn ray_visibility(r: Receiver, march: bool, radius: f32, end_depth: f32, spin: f
         // From the far end back: a ray is most often blocked there, where
         // it meets the blockers the search found (a sheet's band is only
         // there), and the loop ends at its first blocked point. A point
-        // the first layer leaves undecided takes a second turn of the loop,
-        // reading the second layer: a CPU driver reads every layer a turn
-        // names for all its lanes, and most points need only the first.
+        // behind the first surface takes another turn of the loop, reading
+        // the second layer; one a layer's plane test leaves open, another
+        // reading its depths two texels out (as the searches' taps).
         var k = 0u;
         var behind = false;
+        var far_turn = false;
         var front: LayerAt;
+        var here: LayerAt;
         while (k < points && clear) {
             let s = points - 1u - k;
             // The filter's points are a quarter, half and three quarters of
@@ -522,17 +572,25 @@ fn ray_visibility(r: Receiver, march: bool, radius: f32, end_depth: f32, spin: f
             let z = select(mix(r.z, end_depth, t), select(r.z, end_depth, march), last);
             let at = select(r.pixel + t * offset, r.pixel + offset, last);
             let half_step = select(0.0, 0.5 * step_depth, march);
-            let here = layer_at(select(FRONT, BEHIND, behind), at, r);
-            if (behind) {
-                clear = behind_verdict(front, here, r, z, half_step);
-                behind = false;
+            let cell = map_cell(at);
+            let read = read_cross(select(FRONT, BEHIND, behind), cell, r.tile, select(1, 2, far_turn));
+            if (far_turn) {
+                let on_plane = plane_far(vec2f(cell), here.near.centre, here.near.arms, read.arms, r);
+                here.plane = select(PLANE_NO, PLANE_YES, on_plane);
             } else {
-                let verdict = front_verdict(here, r, z, march && !last, half_step);
-                clear = verdict != POINT_BLOCKED;
-                behind = verdict == POINT_BEHIND;
+                here = layer_at(cell, read, at, r);
+            }
+            var verdict: u32;
+            if (behind) {
+                verdict = behind_verdict(front, here, r, z, half_step);
+            } else {
+                verdict = front_verdict(here, r, z, march && !last, half_step);
                 front = here;
             }
-            k += select(1u, 0u, behind);
+            clear = verdict != BLOCKED;
+            far_turn = verdict == ASK_FAR;
+            behind = verdict == BEHIND_FIRST || (behind && far_turn);
+            k += select(1u, 0u, behind || far_turn);
         }
         if (clear) {
             lit += 1.0;
