@@ -141,8 +141,7 @@ fn tap_verdict(cell: vec2<i32>, near: Cross, r: Receiver) -> u32 {
     if (r.z <= stored + r.bias && !covers_receiver(vec2f(cell), stored, stored_slope(stored, near.arms), r)) {
         return CLEAR;
     }
-    let plane = plane_near(vec2f(cell), stored, near.arms, r);
-    return select(select(BLOCKED, CLEAR, plane == PLANE_YES), ASK_FAR, plane == ASK_FAR);
+    return by_plane(plane_near(vec2f(cell), stored, near.arms, r));
 }
 
 // As `tap_verdict` for a tap `sideways` shadow-map texels from the
@@ -176,7 +175,15 @@ struct Search {
 // radius `outer` (`disc`; taps as `tap_verdict` takes them, then the
 // centre), or on the ring between `inner` and `outer` (as `cone_verdict`).
 // The ring's depth starts at the receiver's own.
-fn search_blockers(r: Receiver, disc: bool, taps: u32, inner: f32, outer: f32, spin: f32, depth_to_texels: f32) -> Search {
+fn search_blockers(
+    r: Receiver,
+    disc: bool,
+    taps: u32,
+    inner: f32,
+    outer: f32,
+    spin: f32,
+    depth_to_texels: f32,
+) -> Search {
     var found = Search(false, select(r.z, 0.0, disc));
     // Past the last tap on the disc comes its centre.
     let turns = select(taps, taps + 1u, disc);
@@ -192,7 +199,8 @@ fn search_blockers(r: Receiver, disc: bool, taps: u32, inner: f32, outer: f32, s
             verdict = select(BLOCKED, CLEAR, plane_far(vec2f(cell), near.centre, near.arms, read.arms, r));
         } else {
             near = read;
-            verdict = select(cone_verdict(cell, read, r, length(tap), depth_to_texels), tap_verdict(cell, read, r), disc);
+            let in_cone = cone_verdict(cell, read, r, length(tap), depth_to_texels);
+            verdict = select(in_cone, tap_verdict(cell, read, r), disc);
         }
         if (verdict == BLOCKED) {
             found.blocked = true;
@@ -218,16 +226,16 @@ fn on_sheet(stored: f32) -> bool {
 }
 
 // Whether the surface the depth map holds at texel `cell` (depth `stored`,
-// slope `slope` as `stored_slope` gives it) turns its back to the
-// light in front of the receiver's surface point, or at it: a surface the
-// receiver nearly touches or touches, seen from behind (the floor under a
-// ball resting on it, lit from below). It is never the receiver itself (a
-// light behind the receiver's own face is blocked by it anyway), so it is
-// not carried along the receiver's plane and needs only a rounding
-// tolerance (whose sign its slope sets); but the test point, lifted a
-// shadow-map texel off the surface, may have passed it. The stored surface
-// is carried to the receiver's own map position along its slope (from its
-// smoother side): a floor seen at a grazing angle changes depth across a texel by
+// slope `slope` as `stored_slope` gives it) turns its back to the light in
+// front of the receiver's surface point, or at it: a surface the receiver
+// nearly touches or touches, seen from behind (the floor under a ball
+// resting on it, lit from below). It is never the receiver itself (a light
+// behind the receiver's own face is blocked by it anyway), so it is not
+// carried along the receiver's plane and needs only a rounding tolerance
+// (whose sign its slope sets); but the test point, lifted a shadow-map
+// texel off the surface, may have passed it. The stored surface is carried
+// to the receiver's own map position along its slope (from its smoother
+// side): a floor seen at a grazing angle changes depth across a texel by
 // far more than the millimetre under the ball.
 fn covers_receiver(cell: vec2f, stored: f32, slope: vec2f, r: Receiver) -> bool {
     let there = stored + dot(slope, r.surface_pixel - (cell + 0.5));
@@ -242,8 +250,8 @@ fn covers_receiver(cell: vec2f, stored: f32, slope: vec2f, r: Receiver) -> bool 
 
 // The stored surface's depth change per texel along x and y, from the side
 // of the texel (depth `stored`, neighbours `n` as `read_cross` gives them a
-// texel out) where it changes less: at a silhouette the other side is another
-// surface.
+// texel out) where it changes less: at a silhouette the other side is
+// another surface.
 fn stored_slope(stored: f32, n: vec4f) -> vec2f {
     return vec2f(smoother(n.x, stored, n.y), smoother(n.z, stored, n.w));
 }
@@ -281,6 +289,12 @@ fn plane_near(cell: vec2f, stored: f32, n: vec4f, r: Receiver) -> u32 {
         return PLANE_NO;
     }
     return select(ASK_FAR, PLANE_YES, all(sides_without_junction(cell, stored, n, r)));
+}
+
+// A point or tap that only the plane test can clear: CLEAR on the
+// receiver's plane, BLOCKED off it, ASK_FAR where `plane_near` left it open.
+fn by_plane(plane: u32) -> u32 {
+    return select(select(BLOCKED, CLEAR, plane == PLANE_YES), ASK_FAR, plane == ASK_FAR);
 }
 
 // How far a stored surface may lie from the receiver's plane carried to
@@ -436,7 +450,7 @@ fn behind_verdict(front: LayerAt, back: LayerAt, r: Receiver, z: f32, half_step:
     if (z > surface + band) {
         return select(BLOCKED, CLEAR, on_sheet(behind));
     }
-    return select(select(BLOCKED, CLEAR, back.plane == PLANE_YES), ASK_FAR, back.plane == ASK_FAR);
+    return by_plane(back.plane);
 }
 
 // How much of a distant light of angular radius atan(tan_alpha) reaches the
@@ -500,8 +514,8 @@ fn light_visibility(r: Receiver, tan_alpha: f32, nearest_depth: f32, spin: f32) 
     }
     // A blocker close enough for a narrow penumbra (a contact, a wall
     // beside the receiver) keeps the filter: its taps are sealed against
-    // walls seen edge-on, which matters most there.
-    // One call for both kinds of ray: a CPU driver would run each call.
+    // walls seen edge-on, which matters most there. Both kinds of ray take
+    // one call: a CPU driver would run every call written.
     let nearest_span = (r.z - nearest) * depth_to_texels;
     let filtered = span <= PCF_LIMIT || nearest_span <= PCF_LIMIT;
     let march_span = min(span, MAX_MARCH);
