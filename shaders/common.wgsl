@@ -144,6 +144,15 @@ struct Shooter {
     _pad: u32,
 }
 
+// Shooter slots per batch (`bounce::MAX_SHOOTERS`): a near-field
+// receiver's slots are the bits of one u32.
+const MAX_SHOOTERS: u32 = 32u;
+
+// A batch's shooters, as a uniform buffer.
+struct ShooterBatch {
+    items: array<Shooter, MAX_SHOOTERS>,
+}
+
 // Mirrors `bounce::BounceParams`.
 struct BounceParams {
     texel_count: u32,

@@ -16,8 +16,9 @@
 // power; the area centroid when it has none). A patch a wall cuts through
 // (a floor cell half inside a room) then shoots from its lit side.
 @group(0) @binding(6) var<storage, read_write> patch_origin: array<vec4f>;
-// The batch's shooters (chosen by solve_select).
-@group(0) @binding(7) var<storage, read> shooters: array<Shooter>;
+// The batch's shooters (chosen by solve_select), a uniform buffer as in
+// solve_shoot.wgsl.
+@group(0) @binding(7) var<uniform> shooters: ShooterBatch;
 // Per shooter slot k and sub-cell c of its patch: at k·2·SUB_CELL_COUNT + c
 // (Σ ΔL·A rgb, Σ A), at SUB_CELL_COUNT further the area centroid.
 @group(0) @binding(8) var<storage, read_write> shooter_cells: array<vec4f>;
@@ -70,7 +71,7 @@ fn sub_cell(texel: Texel) -> u32 {
 @compute @workgroup_size(16)
 fn shooter_cells_of_batch(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) c: u32) {
     let k = group.x;
-    let s = shooters[k];
+    let s = shooters.items[k];
     var power = vec3f(0.0);
     var area = 0.0;
     var centroid = vec3f(0.0);

@@ -37,9 +37,6 @@
 // uniform array's elements for all lanes at once, where it reads a storage
 // or workgroup array indexed by a loop counter lane by lane (on lavapipe
 // that was most of a shot's gather).
-struct ShooterBatch {
-    items: array<Shooter, MAX_SHOOTERS>,
-}
 struct ShooterCells {
     items: array<vec4f, SHOOTER_CELLS>,
 }
@@ -70,8 +67,6 @@ struct NearList {
     entries: array<vec2<u32>>,
 }
 
-// A near-field receiver's slots are the bits of one u32.
-const MAX_SHOOTERS: u32 = 32u;
 const SHOOTER_CELLS: u32 = 1024u;  // MAX_SHOOTERS · 2 · SUB_CELL_COUNT
 // Texels one measure workgroup sums (64 invocations × 64 texels).
 const MEASURE_CHUNK: u32 = 4096u;

@@ -51,7 +51,7 @@ use crate::gpu::{self, Gpu, Shader, read_buffer};
 use crate::scene::Scene;
 use crate::texelize::{Texel, TexelSet};
 
-/// Shooter slots per batch (`MAX_SHOOTERS` in solve_shoot.wgsl): a near-field
+/// Shooter slots per batch (`MAX_SHOOTERS` in common.wgsl): a near-field
 /// receiver lists the slots it is near as bits of one u32.
 pub const MAX_SHOOTERS: u32 = 32;
 const _: () = assert!(MAX_SHOOTERS <= u32::BITS);
@@ -752,7 +752,7 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             gpu::storage_entry(5, false, compute),
             gpu::storage_entry(6, false, compute),
             // 7: the batch's shooters, 8: their light by sub-cells (written)
-            gpu::storage_entry(7, true, compute),
+            gpu::uniform_entry(7, compute),
             gpu::storage_entry(8, false, compute),
             // 9: each texel's share of the area that bounces
             gpu::storage_entry(9, true, compute),
