@@ -48,6 +48,18 @@ struct ShooterCells {
 @group(0) @binding(7) var<storage, read_write> patch_scale: array<f32>;
 // Near-field, then far-field Σ F_ij A_i / A_j per shooter slot and texel chunk (measure pass).
 @group(0) @binding(8) var<storage, read_write> partials: array<f32>;
+// The batch's shooters' scales by slot, as `finish` leaves them: read by
+// `main` as a uniform buffer, for the reason the shooters are one, and
+// written by `finish` (each in a group of its own).
+struct SlotScales {
+    items: array<vec4f, MAX_SHOOTERS / 4u>,
+}
+@group(1) @binding(0) var<uniform> slot_scales: SlotScales;
+@group(1) @binding(1) var<storage, read_write> slot_scales_out: array<f32, MAX_SHOOTERS>;
+
+fn slot_scale(k: u32) -> f32 {
+    return slot_scales.items[k / 4u][k % 4u];
+}
 // 1 where the hemicube sees a surface's front (the depth atlas's companion).
 @group(0) @binding(9) var front: texture_2d<f32>;
 // Receivers with a shooter of the batch in their near field, listed by
@@ -302,7 +314,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         if (g.x > 0.0) {
             near_slots |= 1u << k;
         } else {
-            gathered += g.y * patch_scale[s.patch_index] * s.radiance;
+            gathered += g.y * slot_scale(k) * s.radiance;
         }
     }
     lightmap[i] += vec4f(gathered, 0.0);
@@ -467,6 +479,11 @@ fn measure(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
 fn finish(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let k = group.x;
     if ((slots_needing_scale(lid) & (1u << k)) == 0u) {
+        // Scaled when it shot before (or an unused slot).
+        let patch_index = shooters.items[k].patch_index;
+        if (lid == 0u && patch_index != NO_TRIANGLE) {
+            slot_scales_out[k] = patch_scale[patch_index];
+        }
         return;
     }
     var measured = vec2f(0.0);
@@ -509,5 +526,6 @@ fn finish(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_ind
             scale = clamp((share - measured.x) / measured.y, MIN_SCALE, MAX_SCALE);
         }
         patch_scale[shooters.items[k].patch_index] = scale;
+        slot_scales_out[k] = scale;
     }
 }

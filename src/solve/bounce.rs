@@ -283,6 +283,9 @@ struct Resources {
     stats: wgpu::Buffer,
     /// Per patch: the scale of its form factors, 0 until it first shoots.
     patch_scale: wgpu::Buffer,
+    /// The batch's shooters' scales by slot (written by `finish`), which the
+    /// gather reads as a uniform buffer.
+    slot_scales: wgpu::Buffer,
     /// Near- and far-field sums of the measure pass per shooter slot and texel chunk.
     partials: wgpu::Buffer,
     /// Receivers in a shooter's near field: a count, then (texel, slots) pairs.
@@ -304,11 +307,14 @@ struct Pipelines {
     shooter_cells: wgpu::ComputePipeline,
     /// Opaque and alpha-cut-out casters, and their bind group.
     hemicube: (wgpu::RenderPipeline, wgpu::RenderPipeline, wgpu::BindGroup),
-    /// The form-factor normalization (measure, then finish); they share the shots' bind group.
+    /// The form-factor normalization (measure, then finish); they share the
+    /// shots' bind group, and `finish` writes the slots' scales in its own.
     measure: wgpu::ComputePipeline,
-    finish: wgpu::ComputePipeline,
-    /// The far field of every receiver, then the near field of those `main` listed.
+    finish: (wgpu::ComputePipeline, wgpu::BindGroup),
+    /// The far field of every receiver, then the near field of those `main`
+    /// listed; the far field reads the slots' scales in a bind group of its own.
     shoot: (wgpu::ComputePipeline, wgpu::BindGroup),
+    slot_scales: wgpu::BindGroup,
     /// Sizes the near-field pass from the list's length, with its own bind group.
     near_dispatch: (wgpu::ComputePipeline, wgpu::BindGroup),
     near_field: wgpu::ComputePipeline,
@@ -495,10 +501,12 @@ pub fn run(
             if normalized {
                 pass.set_pipeline(&pipelines.measure);
                 pass.dispatch_workgroups(params.chunk_count, shooter_count.div_ceil(MEASURE_SLOTS), 1);
-                pass.set_pipeline(&pipelines.finish);
+                pass.set_pipeline(&pipelines.finish.0);
+                pass.set_bind_group(1, &pipelines.finish.1, &[]);
                 pass.dispatch_workgroups(shooter_count, 1, 1);
             }
             pass.set_pipeline(&pipelines.shoot.0);
+            pass.set_bind_group(1, &pipelines.slot_scales, &[]);
             pass.dispatch_workgroups(groups_x, groups_y, 1);
             pass.set_pipeline(&pipelines.near_dispatch.0);
             pass.set_bind_group(0, &pipelines.near_dispatch.1, &[]);
@@ -708,6 +716,11 @@ fn resources(
             patches.patches.len(),
             wgpu::BufferUsages::COPY_DST,
         ),
+        slot_scales: gpu.storage_buffer(
+            "solve_shoot slot scales",
+            &[1f32; MAX_SHOOTERS as usize],
+            wgpu::BufferUsages::UNIFORM,
+        ),
         partials: gpu.zeroed_storage_buffer::<f32>(
             "solve_shoot measured sums",
             (2 * MAX_SHOOTERS * params.chunk_count) as usize,
@@ -881,6 +894,21 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
         ],
     });
 
+    // The slots' scales: written by `finish`, read by `main` as a uniform
+    // buffer, so in a group of each one's own.
+    let scales_layout = |label, entry| layout(label, &[entry]);
+    let write_scales_layout = scales_layout("solve_shoot slot scales (written)", gpu::storage_entry(1, false, compute));
+    let read_scales_layout = scales_layout("solve_shoot slot scales", gpu::uniform_entry(0, compute));
+    let scales_group = |label, layout, binding| {
+        gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(label),
+            layout,
+            entries: &[wgpu::BindGroupEntry { binding, resource: r.slot_scales.as_entire_binding() }],
+        })
+    };
+    let write_scales_group = scales_group("solve_shoot slot scales (written)", &write_scales_layout, 1);
+    let read_scales_group = scales_group("solve_shoot slot scales", &read_scales_layout, 0);
+
     // Apart from the shots' group: its output is the near-field pass's
     // indirect arguments, which no bind group of that pass may hold.
     let near_dispatch_layout = layout(
@@ -934,8 +962,12 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
         select: (gpu.compute_pipeline(Shader::SolveSelect, "main", &[&select_layout]), select_group),
         hemicube: (opaque, masked, hemicube_group),
         measure: gpu.compute_pipeline(Shader::SolveShoot, "measure", &[&shoot_layout]),
-        finish: gpu.compute_pipeline(Shader::SolveShoot, "finish", &[&shoot_layout]),
-        shoot: (gpu.compute_pipeline(Shader::SolveShoot, "main", &[&shoot_layout]), shoot_group),
+        finish: (
+            gpu.compute_pipeline(Shader::SolveShoot, "finish", &[&shoot_layout, &write_scales_layout]),
+            write_scales_group,
+        ),
+        shoot: (gpu.compute_pipeline(Shader::SolveShoot, "main", &[&shoot_layout, &read_scales_layout]), shoot_group),
+        slot_scales: read_scales_group,
         near_field: gpu.compute_pipeline(Shader::SolveShoot, "near_field", &[&shoot_layout]),
         near_dispatch: (
             gpu.compute_pipeline(Shader::SolveShoot, "near_dispatch", &[&near_dispatch_layout]),
