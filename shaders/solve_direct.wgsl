@@ -601,6 +601,8 @@ fn ray_visibility(r: Receiver, march: bool, radius: f32, end_depth: f32, spin: f
                 verdict = front_verdict(here, r, z, march && !last, half_step);
                 front = here;
             }
+            // The point stays for the turn it is owed: the second layer's,
+            // or its layer's depths two texels out.
             clear = verdict != BLOCKED;
             far_turn = verdict == ASK_FAR;
             behind = verdict == BEHIND_FIRST || (behind && far_turn);
