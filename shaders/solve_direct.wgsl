@@ -144,24 +144,23 @@ fn tap_verdict(cell: vec2<i32>, near: Cross, r: Receiver) -> u32 {
     return by_plane(plane_near(vec2f(cell), stored, near.arms, r));
 }
 
-// As `tap_verdict` for a tap `sideways` shadow-map texels from the
-// receiver, but only a blocker that some ray within the light's cone
-// (which moves `depth_to_texels` sideways per unit of depth) can reach:
-// one further out than its depth in front of the receiver lets it is no
-// blocker of this light, however far in front it lies (a wall seen at a
-// grazing angle, the receiver's own surface curving up). The surface's
-// depth change across the texel and a texel of sideways slack keep a
-// slanted or edge-on surface that reaches into the cone.
-fn cone_verdict(cell: vec2<i32>, near: Cross, r: Receiver, sideways: f32, depth_to_texels: f32) -> u32 {
+// Whether the surface at a tap `sideways` shadow-map texels from the
+// receiver (texel `cell`, depths `near`) is out of reach of every ray
+// within the light's cone (which moves `depth_to_texels` sideways per unit
+// of depth), so no blocker of this light: one further out than its depth
+// in front of the receiver lets a ray reach, however far in front it lies
+// (a wall seen at a grazing angle, the receiver's own surface curving up),
+// or one hardly above the receiver's tangent plane (ABOVE_PLANE). The
+// surface's depth change across the texel
+// and a texel of sideways slack keep a slanted or edge-on surface that
+// reaches into the cone.
+fn beyond_cone(cell: vec2<i32>, near: Cross, r: Receiver, sideways: f32, depth_to_texels: f32) -> bool {
     let stored = near.centre;
     let height = dot(r.rise, vec3f(vec2f(cell) + 0.5 - r.surface_pixel, stored - r.surface_z));
     let slope = stored_slope(stored, near.arms);
     let nearest_part = stored - max(abs(slope.x), abs(slope.y));
     let reachable = sideways <= (r.z - nearest_part) * depth_to_texels + 1.0;
-    if (height <= ABOVE_PLANE || !reachable) {
-        return CLEAR;
-    }
-    return tap_verdict(cell, near, r);
+    return height <= ABOVE_PLANE || !reachable;
 }
 
 // What a blocker search found: whether a tap was blocked, and the depth
@@ -173,7 +172,8 @@ struct Search {
 
 // A blocker search of `taps` taps around the receiver: on the disc of
 // radius `outer` (`disc`; taps as `tap_verdict` takes them, then the
-// centre), or on the ring between `inner` and `outer` (as `cone_verdict`).
+// centre), or on the ring between `inner` and `outer` (leaving out what is
+// `beyond_cone`).
 // The ring's depth starts at the receiver's own.
 fn search_blockers(
     r: Receiver,
@@ -199,8 +199,8 @@ fn search_blockers(
             verdict = select(BLOCKED, CLEAR, plane_far(vec2f(cell), near.centre, near.arms, read.arms, r));
         } else {
             near = read;
-            let in_cone = cone_verdict(cell, read, r, length(tap), depth_to_texels);
-            verdict = select(in_cone, tap_verdict(cell, read, r), disc);
+            let out_of_reach = !disc && beyond_cone(cell, read, r, length(tap), depth_to_texels);
+            verdict = select(tap_verdict(cell, read, r), CLEAR, out_of_reach);
         }
         if (verdict == BLOCKED) {
             found.blocked = true;

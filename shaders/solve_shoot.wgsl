@@ -48,18 +48,6 @@ struct ShooterCells {
 @group(0) @binding(7) var<storage, read_write> patch_scale: array<f32>;
 // Near-field, then far-field Σ F_ij A_i / A_j per shooter slot and texel chunk (measure pass).
 @group(0) @binding(8) var<storage, read_write> partials: array<f32>;
-// The batch's shooters' scales by slot, as `finish` leaves them: read by
-// `main` as a uniform buffer, for the reason the shooters are one, and
-// written by `finish` (each in a group of its own).
-struct SlotScales {
-    items: array<vec4f, MAX_SHOOTERS / 4u>,
-}
-@group(1) @binding(0) var<uniform> slot_scales: SlotScales;
-@group(1) @binding(1) var<storage, read_write> slot_scales_out: array<f32, MAX_SHOOTERS>;
-
-fn slot_scale(k: u32) -> f32 {
-    return slot_scales.items[k / 4u][k % 4u];
-}
 // 1 where the hemicube sees a surface's front (the depth atlas's companion).
 @group(0) @binding(9) var front: texture_2d<f32>;
 // Receivers with a shooter of the batch in their near field, listed by
@@ -72,6 +60,19 @@ fn slot_scale(k: u32) -> f32 {
 // surface lies on or over it; src/solve/overlaps.rs). Where two surfaces
 // coincide, each receives the place's light but counts for half its area.
 @group(0) @binding(13) var<storage, read> shares: array<f32>;
+
+// The batch's shooters' scales by slot, as `finish` leaves them: read by
+// `main` as a uniform buffer, for the reason the shooters are one, and
+// written by `finish` (each in a group of its own).
+struct SlotScales {
+    items: array<vec4f, MAX_SHOOTERS / 4u>,
+}
+@group(1) @binding(0) var<uniform> slot_scales: SlotScales;
+@group(1) @binding(1) var<storage, read_write> slot_scales_out: array<f32, MAX_SHOOTERS>;
+
+fn slot_scale(k: u32) -> f32 {
+    return slot_scales.items[k / 4u][k % 4u];
+}
 
 struct NearList {
     count: atomic<u32>,

@@ -896,9 +896,8 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
 
     // The slots' scales: written by `finish`, read by `main` as a uniform
     // buffer, so in a group of each one's own.
-    let scales_layout = |label, entry| layout(label, &[entry]);
-    let write_scales_layout = scales_layout("solve_shoot slot scales (written)", gpu::storage_entry(1, false, compute));
-    let read_scales_layout = scales_layout("solve_shoot slot scales", gpu::uniform_entry(0, compute));
+    let write_scales_layout = layout("solve_shoot slot scales (written)", &[gpu::storage_entry(1, false, compute)]);
+    let read_scales_layout = layout("solve_shoot slot scales", &[gpu::uniform_entry(0, compute)]);
     let scales_group = |label, layout, binding| {
         gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some(label),
