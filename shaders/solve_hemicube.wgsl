@@ -78,9 +78,16 @@ fn hemicube_out(local: vec3f, face: u32, front_facing: bool) -> HemicubeOut {
     // positive determinant while looking along +w), so the rasterizer's
     // counter-clockwise "front" is the surface's back there.
     let mirrored = face == 0u || face == 1u || face == 4u;
+    let seen_from_front = front_facing != mirrored;
+    let depth = clamp(length(local) / params.far, 0.0, 1.0);
+    // The depth's last bit says which side is seen, so a back face lies one
+    // step behind a front face at the same depth: the depth test keeps the
+    // same fragment in whatever order the culled lists draw them (a surface
+    // drawn twice, facing both ways, would otherwise show the first drawn).
+    let sided = bitcast<f32>((bitcast<u32>(depth) & ~1u) | select(1u, 0u, seen_from_front));
     var out: HemicubeOut;
-    out.depth = clamp(length(local) / params.far, 0.0, 1.0);
-    out.front = vec4f(select(0.0, 1.0, front_facing != mirrored));
+    out.depth = select(sided, 1.0, depth >= 1.0);
+    out.front = vec4f(select(0.0, 1.0, seen_from_front));
     return out;
 }
 

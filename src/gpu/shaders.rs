@@ -22,6 +22,8 @@ pub enum Shader {
     SolveSelect,
     /// Hemicube depth maps from each shooter.
     SolveHemicube,
+    /// Lists the casters each hemicube face of a batch can see.
+    SolveHemicubeCull,
     /// Every texel gathers the batch's shots.
     SolveShoot,
 }
@@ -35,6 +37,7 @@ impl Shader {
         Shader::SolvePatchPower,
         Shader::SolveSelect,
         Shader::SolveHemicube,
+        Shader::SolveHemicubeCull,
         Shader::SolveShoot,
     ];
 
@@ -48,6 +51,7 @@ impl Shader {
             Shader::SolvePatchPower => "solve_patch_power",
             Shader::SolveSelect => "solve_select",
             Shader::SolveHemicube => "solve_hemicube",
+            Shader::SolveHemicubeCull => "solve_hemicube_cull",
             Shader::SolveShoot => "solve_shoot",
         }
     }
@@ -61,6 +65,7 @@ impl Shader {
             Shader::SolvePatchPower => include_str!("../../shaders/solve_patch_power.wgsl"),
             Shader::SolveSelect => include_str!("../../shaders/solve_select.wgsl"),
             Shader::SolveHemicube => include_str!("../../shaders/solve_hemicube.wgsl"),
+            Shader::SolveHemicubeCull => include_str!("../../shaders/solve_hemicube_cull.wgsl"),
             Shader::SolveShoot => include_str!("../../shaders/solve_shoot.wgsl"),
         }
     }

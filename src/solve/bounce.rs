@@ -3,7 +3,8 @@
 //! for progressive refinement and the ambient term).
 //!
 //! Each batch: sum every patch's unshot power Σ ΔL·A on the GPU
-//! (`solve_patch_power`), pick the K largest (`solve_select`), render a
+//! (`solve_patch_power`), pick the K largest (`solve_select`), list the
+//! casters each of their hemicube faces can see (`hemicube_cull`), render a
 //! hemicube depth map from each (`solve_hemicube`), and let every texel
 //! gather from the K shooters with the seed's bounded form factor
 //! (`solve_shoot`: the far field for every texel, then the exact near field
@@ -46,6 +47,7 @@ use bytemuck::{Pod, Zeroable};
 use serde::{Deserialize, Serialize};
 
 use super::casters::Casters;
+use super::hemicube_cull::HemicubeCull;
 use super::patches::Patches;
 use crate::gpu::{self, Gpu, Shader, read_buffer};
 use crate::scene::Scene;
@@ -298,6 +300,8 @@ struct Resources {
     depth_view: wgpu::TextureView,
     front_view: wgpu::TextureView,
     casters: Casters,
+    /// What each hemicube face of the batch draws.
+    cull: HemicubeCull,
 }
 
 struct Pipelines {
@@ -494,6 +498,7 @@ pub fn run(
 
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         encoder.clear_buffer(&resources.near_list, 0, Some(8));
+        resources.cull.record(&mut encoder);
         render_hemicubes(&mut encoder, &pipelines, &resources, shooter_count, face, tiles_per_row);
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
@@ -687,6 +692,13 @@ fn resources(
     let depth = gpu.depth_target("solve_hemicube depth", 3 * face * tiles_per_row, face * tile_rows);
     let front = gpu.render_target("solve_hemicube front", 3 * face * tiles_per_row, face * tile_rows, FRONT_FORMAT);
     let lightmap4: Vec<[f32; 4]> = lightmap.iter().map(|l| [l[0], l[1], l[2], 0.0]).collect();
+    let hemicube_faces = gpu.zeroed_storage_buffer::<HemicubeFace>(
+        "solve_select hemicube faces",
+        5 * MAX_SHOOTERS as usize,
+        wgpu::BufferUsages::VERTEX,
+    );
+    let casters = Casters::new(gpu, scene, false);
+    let cull = HemicubeCull::new(gpu, &casters, &hemicube_faces, 5 * params.shooter_count, params.near);
     Resources {
         params: gpu.uniform_buffer("solve_shoot params", &params),
         texels: gpu.storage_buffer("solve_shoot texels", &texels.texels, none),
@@ -704,11 +716,6 @@ fn resources(
             "solve_select shooters",
             &[Shooter::default(); MAX_SHOOTERS as usize],
             wgpu::BufferUsages::UNIFORM,
-        ),
-        hemicube_faces: gpu.zeroed_storage_buffer::<HemicubeFace>(
-            "solve_select hemicube faces",
-            5 * MAX_SHOOTERS as usize,
-            wgpu::BufferUsages::VERTEX,
         ),
         stats: gpu.storage_buffer("solve_select stats", &[GpuStats::default()], wgpu::BufferUsages::COPY_SRC),
         patch_scale: gpu.zeroed_storage_buffer::<f32>(
@@ -739,9 +746,11 @@ fn resources(
             &vec![[0f32; 4]; MAX_SHOOTERS as usize * 2 * SUB_CELL_COUNT],
             wgpu::BufferUsages::UNIFORM,
         ),
+        hemicube_faces,
         depth_view: depth.create_view(&Default::default()),
         front_view: front.create_view(&Default::default()),
-        casters: Casters::new(gpu, scene, false),
+        casters,
+        cull,
     }
 }
 
@@ -1004,6 +1013,10 @@ fn render_hemicubes(
     });
     pass.set_bind_group(0, &pipelines.hemicube.2, &[]);
     r.casters.bind(&mut pass, &r.hemicube_faces);
+    // The faces' lists, in place of the casters' own indices.
+    r.cull.bind(&mut pass);
+    let (opaque, masked) = (&pipelines.hemicube.0, &pipelines.hemicube.1);
+    let face_bytes = std::mem::size_of::<HemicubeFace>() as u64;
     let s = face as f32;
     for slot in 0..shooters {
         let tile = [(slot % tiles_per_row) as f32 * 3.0 * s, (slot / tiles_per_row) as f32 * s];
@@ -1016,8 +1029,13 @@ fn render_hemicubes(
         ];
         for (f, [x, y, w, h]) in views.into_iter().enumerate() {
             pass.set_viewport(x, y, w, h, 0.0, 1.0);
+            // The face's attributes as instance 0: an indirect draw's first
+            // instance must be 0 on adapters without INDIRECT_FIRST_INSTANCE.
             let instance = slot * 5 + f as u32;
-            r.casters.draw(&mut pass, &pipelines.hemicube.0, &pipelines.hemicube.1, instance);
+            pass.set_vertex_buffer(1, r.hemicube_faces.slice(instance as u64 * face_bytes..));
+            pass.set_pipeline(opaque);
+            r.cull.draw(&mut pass, instance);
+            r.casters.draw_masked(&mut pass, masked, 0);
         }
     }
 }

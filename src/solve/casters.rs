@@ -35,11 +35,11 @@ pub const VERTEX_LAYOUT: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferL
 
 /// The scene's casters on the GPU, with the materials their cut-outs need.
 pub struct Casters {
-    vertices: wgpu::Buffer,
-    indices: wgpu::Buffer,
-    /// Index ranges of opaque and of alpha-MASK triangles.
-    opaque: Range<u32>,
-    masked: Range<u32>,
+    pub(super) vertices: wgpu::Buffer,
+    pub(super) indices: wgpu::Buffer,
+    /// Index ranges of opaque and of alpha-MASK triangles, one after the other.
+    pub(super) opaque: Range<u32>,
+    pub(super) masked: Range<u32>,
     pub materials: Materials,
 }
 
@@ -83,7 +83,11 @@ impl Casters {
         opaque.extend(masked);
         Casters {
             vertices: gpu.storage_buffer("casters vertices", &vertices, wgpu::BufferUsages::VERTEX),
-            indices: gpu.storage_buffer("casters indices", &opaque, wgpu::BufferUsages::INDEX),
+            indices: gpu.storage_buffer(
+                "casters indices",
+                &opaque,
+                wgpu::BufferUsages::INDEX | wgpu::BufferUsages::COPY_SRC,
+            ),
             opaque: 0..opaque_count,
             masked: opaque_count..opaque_count + masked_count,
             materials,
@@ -138,6 +142,12 @@ impl Casters {
             pass.set_pipeline(opaque);
             pass.draw_indexed(self.opaque.clone(), 0, instance..instance + 1);
         }
+        self.draw_masked(pass, masked, instance);
+    }
+
+    /// Draws the cut-out casters for `instance` with `masked`, from an
+    /// index buffer that holds the casters' own indices first.
+    pub fn draw_masked(&self, pass: &mut wgpu::RenderPass, masked: &wgpu::RenderPipeline, instance: u32) {
         if !self.masked.is_empty() {
             pass.set_pipeline(masked);
             pass.draw_indexed(self.masked.clone(), 0, instance..instance + 1);

@@ -10,6 +10,7 @@
 pub mod bounce;
 mod casters;
 pub mod direct;
+mod hemicube_cull;
 mod overlaps;
 pub mod patches;
 pub mod supersample;

@@ -1,0 +1,129 @@
+//! Per-face lists of the casters a batch's hemicube faces can see
+//! (`solve_hemicube_cull`), drawn indirectly by the bounce pass. Each face
+//! sees a fifth of the scene or less, while a draw costs every triangle it
+//! names: on a CPU driver, drawing the whole scene five times a shooter was
+//! most of the bounce pass.
+//!
+//! The lists sit in one index buffer after a copy of the casters' indices,
+//! so a face whose list overflows draws every opaque caster instead, and
+//! alpha-MASK casters (not culled) draw from the same buffer.
+
+use bytemuck::{Pod, Zeroable};
+
+use super::casters::Casters;
+use crate::gpu::{self, Gpu, Shader};
+
+/// At most this much memory for the lists; a face that sees more than its
+/// share draws every opaque caster.
+const LIST_BYTES: u64 = 64 << 20;
+/// Words per face in `draws` (`DRAW_WORDS` in the shader): the indirect
+/// draw's five, then the list's count.
+const DRAW_WORDS: u64 = 8;
+
+/// Mirrors `CullParams` in solve_hemicube_cull.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct CullParams {
+    triangles: u32,
+    capacity: u32,
+    lists_first: u32,
+    faces: u32,
+    near: f32,
+    row_stride: u32,
+    _pad: [u32; 2],
+}
+
+pub struct HemicubeCull {
+    /// The casters' indices, then each face's list.
+    indices: wgpu::Buffer,
+    /// Per face: its indirect draw, then its list's count.
+    draws: wgpu::Buffer,
+    cull: wgpu::ComputePipeline,
+    write_draws: wgpu::ComputePipeline,
+    group: wgpu::BindGroup,
+    groups: (u32, u32),
+    faces: u32,
+}
+
+impl HemicubeCull {
+    /// Lists for `faces` hemicube faces, whose shooters `hemicube_faces`
+    /// holds (`HemicubeFace`, five a slot); `near` is the hemicubes' near plane.
+    pub fn new(gpu: &Gpu, casters: &Casters, hemicube_faces: &wgpu::Buffer, faces: u32, near: f32) -> HemicubeCull {
+        let triangles = casters.opaque.len() as u32 / 3;
+        let copied = casters.masked.end as u64;
+        let room = LIST_BYTES.min(gpu.limits.max_storage_buffer_binding_size).min(gpu.limits.max_buffer_size) / 4;
+        let capacity = (room.saturating_sub(copied) / (3 * faces as u64)).min(triangles as u64) as u32;
+        let indices = gpu.zeroed_storage_buffer::<u32>(
+            "solve_hemicube_cull indices",
+            (copied + 3 * faces as u64 * capacity as u64) as usize,
+            wgpu::BufferUsages::INDEX | wgpu::BufferUsages::COPY_DST,
+        );
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(&casters.indices, 0, &indices, 0, 4 * copied);
+        gpu.queue.submit([encoder.finish()]);
+        let draws = gpu.zeroed_storage_buffer::<u32>(
+            "solve_hemicube_cull draws",
+            (DRAW_WORDS * faces as u64) as usize,
+            wgpu::BufferUsages::INDIRECT,
+        );
+        let groups = gpu.dispatch_size(triangles, 64);
+        let params = CullParams {
+            triangles,
+            capacity,
+            lists_first: copied as u32,
+            faces,
+            near,
+            row_stride: groups.0 * 64,
+            _pad: [0; 2],
+        };
+        let params = gpu.uniform_buffer("solve_hemicube_cull params", &params);
+        let compute = wgpu::ShaderStages::COMPUTE;
+        let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("solve_hemicube_cull"),
+            entries: &[
+                // 0: CullParams, 1: caster vertices, 2: the batch's hemicube faces
+                gpu::uniform_entry(0, compute),
+                gpu::storage_entry(1, true, compute),
+                gpu::storage_entry(2, true, compute),
+                // 3: the indices and lists, 4: the draws (both written)
+                gpu::storage_entry(3, false, compute),
+                gpu::storage_entry(4, false, compute),
+            ],
+        });
+        let group = gpu::bind_buffers(
+            gpu,
+            "solve_hemicube_cull",
+            &layout,
+            &[&params, &casters.vertices, hemicube_faces, &indices, &draws],
+        );
+        HemicubeCull {
+            cull: gpu.compute_pipeline(Shader::SolveHemicubeCull, "cull_triangles", &[&layout]),
+            write_draws: gpu.compute_pipeline(Shader::SolveHemicubeCull, "write_draws", &[&layout]),
+            indices,
+            draws,
+            group,
+            groups,
+            faces,
+        }
+    }
+
+    /// Lists the batch's faces (after its shooters are chosen) and writes their draws.
+    pub fn record(&self, encoder: &mut wgpu::CommandEncoder) {
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        pass.set_bind_group(0, &self.group, &[]);
+        pass.set_pipeline(&self.cull);
+        pass.dispatch_workgroups(self.groups.0, self.groups.1, 1);
+        pass.set_pipeline(&self.write_draws);
+        pass.dispatch_workgroups(self.faces.div_ceil(64), 1, 1);
+    }
+
+    /// Binds the index buffer the draws read.
+    pub fn bind(&self, pass: &mut wgpu::RenderPass) {
+        pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
+    }
+
+    /// Draws face `face`'s list (or every opaque caster) with the bound pipeline.
+    pub fn draw(&self, pass: &mut wgpu::RenderPass, face: u32) {
+        pass.draw_indexed_indirect(&self.draws, 4 * DRAW_WORDS * face as u64);
+    }
+}
