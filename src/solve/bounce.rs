@@ -300,8 +300,8 @@ struct Resources {
     depth_view: wgpu::TextureView,
     front_view: wgpu::TextureView,
     casters: Casters,
-    /// What each hemicube face of the batch draws.
-    cull: HemicubeCull,
+    /// What each hemicube face of the batch draws (None: every caster).
+    cull: Option<HemicubeCull>,
 }
 
 struct Pipelines {
@@ -498,7 +498,9 @@ pub fn run(
 
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         encoder.clear_buffer(&resources.near_list, 0, Some(8));
-        resources.cull.record(&mut encoder);
+        if let Some(cull) = &resources.cull {
+            cull.record(&mut encoder);
+        }
         render_hemicubes(&mut encoder, &pipelines, &resources, shooter_count, face, tiles_per_row);
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
@@ -1013,8 +1015,10 @@ fn render_hemicubes(
     });
     pass.set_bind_group(0, &pipelines.hemicube.2, &[]);
     r.casters.bind(&mut pass, &r.hemicube_faces);
-    // The faces' lists, in place of the casters' own indices.
-    r.cull.bind(&mut pass);
+    if let Some(cull) = &r.cull {
+        // The faces' lists, in place of the casters' own indices.
+        cull.bind(&mut pass);
+    }
     let (opaque, masked) = (&pipelines.hemicube.0, &pipelines.hemicube.1);
     let face_bytes = std::mem::size_of::<HemicubeFace>() as u64;
     let s = face as f32;
@@ -1033,9 +1037,14 @@ fn render_hemicubes(
             // instance must be 0 on adapters without INDIRECT_FIRST_INSTANCE.
             let instance = slot * 5 + f as u32;
             pass.set_vertex_buffer(1, r.hemicube_faces.slice(instance as u64 * face_bytes..));
-            pass.set_pipeline(opaque);
-            r.cull.draw(&mut pass, instance);
-            r.casters.draw_masked(&mut pass, masked, 0);
+            match &r.cull {
+                Some(cull) => {
+                    pass.set_pipeline(opaque);
+                    cull.draw(&mut pass, instance);
+                    r.casters.draw_masked(&mut pass, masked, 0);
+                }
+                None => r.casters.draw(&mut pass, opaque, masked, 0),
+            }
         }
     }
 }

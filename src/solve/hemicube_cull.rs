@@ -6,7 +6,8 @@
 //!
 //! The lists sit in one index buffer after a copy of the casters' indices,
 //! so a face whose list overflows draws every opaque caster instead, and
-//! alpha-MASK casters (not culled) draw from the same buffer.
+//! alpha-MASK casters (not culled) draw from the same buffer. A scene too
+//! large for the adapter to bind that way is drawn whole.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -47,12 +48,24 @@ pub struct HemicubeCull {
 
 impl HemicubeCull {
     /// Lists for `faces` hemicube faces, whose shooters `hemicube_faces`
-    /// holds (`HemicubeFace`, five a slot); `near` is the hemicubes' near plane.
-    pub fn new(gpu: &Gpu, casters: &Casters, hemicube_faces: &wgpu::Buffer, faces: u32, near: f32) -> HemicubeCull {
+    /// holds (`HemicubeFace`, five a slot); `near` is the hemicubes' near
+    /// plane. None where the casters are too many for the adapter to bind
+    /// them with room for lists: every face then draws them all.
+    pub fn new(
+        gpu: &Gpu,
+        casters: &Casters,
+        hemicube_faces: &wgpu::Buffer,
+        faces: u32,
+        near: f32,
+    ) -> Option<HemicubeCull> {
         let triangles = casters.opaque.len() as u32 / 3;
         let copied = casters.masked.end as u64;
-        let room = LIST_BYTES.min(gpu.limits.max_storage_buffer_binding_size).min(gpu.limits.max_buffer_size) / 4;
-        let capacity = (room.saturating_sub(copied) / (3 * faces as u64)).min(triangles as u64) as u32;
+        let binding = gpu.limits.max_storage_buffer_binding_size.min(gpu.limits.max_buffer_size);
+        let list_words = LIST_BYTES.min(binding.saturating_sub(4 * copied)) / 4;
+        let capacity = (list_words / (3 * faces as u64)).min(triangles as u64) as u32;
+        if capacity == 0 || casters.vertices.size() > binding {
+            return None;
+        }
         let indices = gpu.zeroed_storage_buffer::<u32>(
             "solve_hemicube_cull indices",
             (copied + 3 * faces as u64 * capacity as u64) as usize,
@@ -96,7 +109,7 @@ impl HemicubeCull {
             &layout,
             &[&params, &casters.vertices, hemicube_faces, &indices, &draws],
         );
-        HemicubeCull {
+        Some(HemicubeCull {
             cull: gpu.compute_pipeline(Shader::SolveHemicubeCull, "cull_triangles", &[&layout]),
             write_draws: gpu.compute_pipeline(Shader::SolveHemicubeCull, "write_draws", &[&layout]),
             indices,
@@ -104,7 +117,7 @@ impl HemicubeCull {
             group,
             groups,
             faces,
-        }
+        })
     }
 
     /// Lists the batch's faces (after its shooters are chosen) and writes their draws.
