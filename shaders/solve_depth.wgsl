@@ -18,17 +18,32 @@ struct LightIn {
     @location(5) direction: vec4f,
 }
 
+fn light_clip(position: vec3f, light: LightIn) -> vec4f {
+    return vec4f(light_space(position, light.direction.xyz, params.centre, params.radius), 1.0);
+}
+
 @vertex
 fn vs_depth(in: CasterIn, light: LightIn) -> CasterOut {
-    let ls = light_space(in.position, light.direction.xyz, params.centre, params.radius);
     var out: CasterOut;
-    out.clip = vec4f(ls.x, ls.y, ls.z, 1.0);
+    out.clip = light_clip(in.position, light);
     out.local = vec3f(0.0);
     out.material = in.material;
     out.uv0 = in.uv0;
     out.uv1 = in.uv1;
     out.sheet = in.sheet;
     return out;
+}
+
+// What an opaque caster's fragment needs: a CPU driver sets up and
+// interpolates every output of a vertex shader, read or not.
+struct OpaqueOut {
+    @builtin(position) clip: vec4f,
+    @location(5) @interpolate(flat) sheet: u32,
+}
+
+@vertex
+fn vs_depth_opaque(in: CasterIn, light: LightIn) -> OpaqueOut {
+    return OpaqueOut(light_clip(in.position, light), in.sheet);
 }
 
 // Whether the fragment falls in a cut-out of its alpha-MASK material.
@@ -46,14 +61,14 @@ fn cut_out(in: CasterOut) -> bool {
 // face; the light-space frame keeps handedness, so that side faces the
 // light exactly where the rasterizer calls it front-facing. Three units in
 // the last place move no surface past another that matters.
-fn with_facing(in: CasterOut, front: bool) -> f32 {
-    let marks = select(1u, 0u, front) | (min(in.sheet, 1u) << 1u);
-    return bitcast<f32>((bitcast<u32>(in.clip.z) & ~3u) | marks);
+fn with_facing(clip: vec4f, sheet: u32, front: bool) -> f32 {
+    let marks = select(1u, 0u, front) | (min(sheet, 1u) << 1u);
+    return bitcast<f32>((bitcast<u32>(clip.z) & ~3u) | marks);
 }
 
 @fragment
-fn fs_depth(in: CasterOut, @builtin(front_facing) front: bool) -> @builtin(frag_depth) f32 {
-    return with_facing(in, front);
+fn fs_depth(in: OpaqueOut, @builtin(front_facing) front: bool) -> @builtin(frag_depth) f32 {
+    return with_facing(in.clip, in.sheet, front);
 }
 
 @fragment
@@ -61,7 +76,7 @@ fn fs_depth_masked(in: CasterOut, @builtin(front_facing) front: bool) -> @builti
     if (cut_out(in)) {
         discard;
     }
-    return with_facing(in, front);
+    return with_facing(in.clip, in.sheet, front);
 }
 
 // The second layer: the nearest surface behind the first (depth peeling).
@@ -78,11 +93,11 @@ fn behind_front(position: vec4f) -> bool {
 }
 
 @fragment
-fn fs_depth_peel(in: CasterOut, @builtin(front_facing) front: bool) -> @builtin(frag_depth) f32 {
+fn fs_depth_peel(in: OpaqueOut, @builtin(front_facing) front: bool) -> @builtin(frag_depth) f32 {
     if (!behind_front(in.clip)) {
         discard;
     }
-    return with_facing(in, front);
+    return with_facing(in.clip, in.sheet, front);
 }
 
 @fragment
@@ -92,5 +107,5 @@ fn fs_depth_peel_masked(in: CasterOut, @builtin(front_facing) front: bool) -> @b
     if (cut || !behind_front(in.clip)) {
         discard;
     }
-    return with_facing(in, front);
+    return with_facing(in.clip, in.sheet, front);
 }
