@@ -507,3 +507,29 @@ fn gpu_bake_matches_the_cpu_reference_with_interreflection() {
     eprintln!("GPU vs CPU reference over {} texels: relative RMSE {relative_rmse:.4}", sample.len());
     assert!(relative_rmse < 0.05, "relative RMSE {relative_rmse}");
 }
+
+#[test]
+fn hemicube_faces_drawing_only_the_casters_they_see_give_the_same_bake() {
+    // Each hemicube face draws the casters a compute pass lists for it, and
+    // a face whose list would overflow draws them all. With no room for
+    // lists every face draws every caster; with little, most faces' lists
+    // overflow. corner normalizes its form factors, so the hemicubes'
+    // depths and their front-facing marks both count.
+    let gpu = common::gpu();
+    let map = EnvironmentMap::from_fn(128, 64, |d| if d[1] > 0.0 { [1.0, 0.9, 0.8] } else { [0.1; 3] });
+    let lights = common::lights(&map, LightMode::Budget { count: 32 });
+    let with_lists = |bytes: u64| {
+        let mut options = common::options(64);
+        options.solve.bounce.face_list_bytes = bytes;
+        common::bake(&gpu, &bake::fixtures::corner(), &lights, &options)
+    };
+    let culled = with_lists(bake::solve::BounceOptions::default().face_list_bytes);
+    let bounce = culled.solution.bounce.as_ref().unwrap();
+    assert!(bounce.shots > 0 && bounce.normalized, "{bounce:?}");
+    for bytes in [0, 256 << 10] {
+        let other = with_lists(bytes);
+        let differing = culled.solution.lightmap.iter().zip(&other.solution.lightmap).filter(|(a, b)| a != b).count();
+        eprintln!("lists of at most {bytes} bytes: {differing} texels differ");
+        assert_eq!(differing, 0, "lists of at most {bytes} bytes change the bake");
+    }
+}

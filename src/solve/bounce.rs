@@ -96,6 +96,10 @@ pub struct BounceOptions {
     pub shooters_per_batch: u32,
     /// Hemicube face width in texels.
     pub hemicube_size: u32,
+    /// Memory for the lists of casters each hemicube face can see
+    /// (`hemicube_cull`): a face whose list would not fit draws every
+    /// caster, as every face does at 0.
+    pub face_list_bytes: u64,
     /// Texels whose error against a reference is recorded at every trace
     /// point (`--reference`); `None`: not measured.
     pub probes: Option<std::sync::Arc<Probes>>,
@@ -136,6 +140,7 @@ impl Default for BounceOptions {
             patches: 1024,
             shooters_per_batch: 32,
             hemicube_size: 128,
+            face_list_bytes: 64 << 20,
             probes: None,
         }
     }
@@ -300,8 +305,6 @@ struct Resources {
     depth_view: wgpu::TextureView,
     front_view: wgpu::TextureView,
     casters: Casters,
-    /// What each hemicube face of the batch draws (None: every caster).
-    cull: Option<HemicubeCull>,
 }
 
 struct Pipelines {
@@ -424,6 +427,8 @@ pub fn run(
     let inputs =
         Inputs { texels: gpu_texels, shares, patches, patch_coverage: &patch_coverage, unshot: &unshot, lightmap };
     let resources = resources(gpu, scene, &inputs, params, face, tiles_per_row, tile_rows);
+    let (casters, faces) = (&resources.casters, &resources.hemicube_faces);
+    let cull = HemicubeCull::new(gpu, casters, faces, 5 * shooter_count, params.near, options.face_list_bytes);
     // Without a direct pass (emitters only) the share is unknown: normalize.
     let normalized = initial_closure.is_none_or(|f| f * luminance(mean_albedo) >= NORMALIZE_FROM);
     if !normalized {
@@ -498,10 +503,11 @@ pub fn run(
 
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         encoder.clear_buffer(&resources.near_list, 0, Some(8));
-        if let Some(cull) = &resources.cull {
+        // What each hemicube face of the batch draws (None: every caster).
+        if let Some(cull) = &cull {
             cull.record(&mut encoder);
         }
-        render_hemicubes(&mut encoder, &pipelines, &resources, shooter_count, face, tiles_per_row);
+        render_hemicubes(&mut encoder, &pipelines, &resources, cull.as_ref(), shooter_count, face, tiles_per_row);
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
             pass.set_bind_group(0, &pipelines.shoot.1, &[]);
@@ -699,8 +705,6 @@ fn resources(
         5 * MAX_SHOOTERS as usize,
         wgpu::BufferUsages::VERTEX,
     );
-    let casters = Casters::new(gpu, scene, false);
-    let cull = HemicubeCull::new(gpu, &casters, &hemicube_faces, 5 * params.shooter_count, params.near);
     Resources {
         params: gpu.uniform_buffer("solve_shoot params", &params),
         texels: gpu.storage_buffer("solve_shoot texels", &texels.texels, none),
@@ -751,8 +755,7 @@ fn resources(
         hemicube_faces,
         depth_view: depth.create_view(&Default::default()),
         front_view: front.create_view(&Default::default()),
-        casters,
-        cull,
+        casters: Casters::new(gpu, scene, false),
     }
 }
 
@@ -987,11 +990,13 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
 }
 
 /// The five faces of every shooter's hemicube, each into its viewport of
-/// the depth atlas (the same layout `hemicube_viewport` in common.wgsl reads).
+/// the depth atlas (the same layout `hemicube_viewport` in common.wgsl reads):
+/// the casters `cull` listed for the face, or every caster.
 fn render_hemicubes(
     encoder: &mut wgpu::CommandEncoder,
     pipelines: &Pipelines,
     r: &Resources,
+    cull: Option<&HemicubeCull>,
     shooters: u32,
     face: u32,
     tiles_per_row: u32,
@@ -1015,7 +1020,7 @@ fn render_hemicubes(
     });
     pass.set_bind_group(0, &pipelines.hemicube.2, &[]);
     r.casters.bind(&mut pass, &r.hemicube_faces);
-    if let Some(cull) = &r.cull {
+    if let Some(cull) = cull {
         // The faces' lists, in place of the casters' own indices.
         cull.bind(&mut pass);
     }
@@ -1037,7 +1042,7 @@ fn render_hemicubes(
             // instance must be 0 on adapters without INDIRECT_FIRST_INSTANCE.
             let instance = slot * 5 + f as u32;
             pass.set_vertex_buffer(1, r.hemicube_faces.slice(instance as u64 * face_bytes..));
-            match &r.cull {
+            match cull {
                 Some(cull) => {
                     pass.set_pipeline(opaque);
                     cull.draw(&mut pass, instance);

@@ -14,9 +14,6 @@ use bytemuck::{Pod, Zeroable};
 use super::casters::Casters;
 use crate::gpu::{self, Gpu, Shader};
 
-/// At most this much memory for the lists; a face that sees more than its
-/// share draws every opaque caster.
-const LIST_BYTES: u64 = 64 << 20;
 /// Words per face in `draws` (`DRAW_WORDS` in the shader): the indirect
 /// draw's five, then the list's count.
 const DRAW_WORDS: u64 = 8;
@@ -49,19 +46,22 @@ pub struct HemicubeCull {
 impl HemicubeCull {
     /// Lists for `faces` hemicube faces, whose shooters `hemicube_faces`
     /// holds (`HemicubeFace`, five a slot); `near` is the hemicubes' near
-    /// plane. None where the casters are too many for the adapter to bind
-    /// them with room for lists: every face then draws them all.
+    /// plane. The lists take at most `list_bytes`: a face that sees more
+    /// than its share draws every opaque caster. None where no list has
+    /// room (the casters are too many for the adapter to bind with lists, or
+    /// `list_bytes` is 0): every face then draws every caster.
     pub fn new(
         gpu: &Gpu,
         casters: &Casters,
         hemicube_faces: &wgpu::Buffer,
         faces: u32,
         near: f32,
+        list_bytes: u64,
     ) -> Option<HemicubeCull> {
         let triangles = casters.opaque.len() as u32 / 3;
         let copied = casters.masked.end as u64;
         let binding = gpu.limits.max_storage_buffer_binding_size.min(gpu.limits.max_buffer_size);
-        let list_words = LIST_BYTES.min(binding.saturating_sub(4 * copied)) / 4;
+        let list_words = list_bytes.min(binding.saturating_sub(4 * copied)) / 4;
         let capacity = (list_words / (3 * faces as u64)).min(triangles as u64) as u32;
         if capacity == 0 || casters.vertices.size() > binding {
             return None;
