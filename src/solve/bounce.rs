@@ -700,11 +700,6 @@ fn resources(
     let depth = gpu.depth_target("solve_hemicube depth", 3 * face * tiles_per_row, face * tile_rows);
     let front = gpu.render_target("solve_hemicube front", 3 * face * tiles_per_row, face * tile_rows, FRONT_FORMAT);
     let lightmap4: Vec<[f32; 4]> = lightmap.iter().map(|l| [l[0], l[1], l[2], 0.0]).collect();
-    let hemicube_faces = gpu.zeroed_storage_buffer::<HemicubeFace>(
-        "solve_select hemicube faces",
-        5 * MAX_SHOOTERS as usize,
-        wgpu::BufferUsages::VERTEX,
-    );
     Resources {
         params: gpu.uniform_buffer("solve_shoot params", &params),
         texels: gpu.storage_buffer("solve_shoot texels", &texels.texels, none),
@@ -752,7 +747,11 @@ fn resources(
             &vec![[0f32; 4]; MAX_SHOOTERS as usize * 2 * SUB_CELL_COUNT],
             wgpu::BufferUsages::UNIFORM,
         ),
-        hemicube_faces,
+        hemicube_faces: gpu.zeroed_storage_buffer::<HemicubeFace>(
+            "solve_select hemicube faces",
+            5 * MAX_SHOOTERS as usize,
+            wgpu::BufferUsages::VERTEX,
+        ),
         depth_view: depth.create_view(&Default::default()),
         front_view: front.create_view(&Default::default()),
         casters: Casters::new(gpu, scene, false),

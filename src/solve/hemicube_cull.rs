@@ -1,8 +1,8 @@
 //! Per-face lists of the casters a batch's hemicube faces can see
 //! (`solve_hemicube_cull`), drawn indirectly by the bounce pass. Each face
-//! sees a fifth of the scene or less, while a draw costs every triangle it
-//! names: on a CPU driver, drawing the whole scene five times a shooter was
-//! most of the bounce pass.
+//! sees part of the scene, while a draw costs every triangle it names: on a
+//! CPU driver, drawing the whole scene five times a shooter was most of the
+//! bounce pass.
 //!
 //! The lists sit in one index buffer after a copy of the casters' indices,
 //! so a face whose list overflows draws every opaque caster instead, and
