@@ -151,9 +151,8 @@ fn tap_verdict(cell: vec2<i32>, near: Cross, r: Receiver) -> u32 {
 // in front of the receiver lets a ray reach, however far in front it lies
 // (a wall seen at a grazing angle, the receiver's own surface curving up),
 // or one hardly above the receiver's tangent plane (ABOVE_PLANE). The
-// surface's depth change across the texel
-// and a texel of sideways slack keep a slanted or edge-on surface that
-// reaches into the cone.
+// surface's depth change across the texel and a texel of sideways slack
+// keep a slanted or edge-on surface that reaches into the cone.
 fn beyond_cone(cell: vec2<i32>, near: Cross, r: Receiver, sideways: f32, depth_to_texels: f32) -> bool {
     let stored = near.centre;
     let height = dot(r.rise, vec3f(vec2f(cell) + 0.5 - r.surface_pixel, stored - r.surface_z));
