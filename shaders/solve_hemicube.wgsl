@@ -65,45 +65,38 @@ fn vs_hemicube_masked(in: CasterIn, view: FaceIn) -> CasterOut {
     return out;
 }
 
-// Depth, and whether the shooter sees the surface's front: light that lands
-// on a back face reaches no texel, so the form factors' normalization
-// (solve_shoot's `finish`) must not count it as caught.
-struct HemicubeOut {
-    @builtin(frag_depth) depth: f32,
-    @location(0) front: vec4f,
-}
-
-fn hemicube_out(local: vec3f, face: u32, front_facing: bool) -> HemicubeOut {
+// The distance from the shooter, with its last bit set where the shooter
+// sees the surface's back (`seen_from_front` in solve_shoot.wgsl reads it):
+// light that lands on a back face reaches no texel, so the form factors'
+// normalization (solve_shoot's `finish`) must not count it as caught.
+fn hemicube_depth(local: vec3f, face: u32, front_facing: bool) -> f32 {
     // Faces 0, 1 and 4 project with a mirror (their clip-space map has a
     // positive determinant while looking along +w), so the rasterizer's
     // counter-clockwise "front" is the surface's back there.
     let mirrored = face == 0u || face == 1u || face == 4u;
     let seen_from_front = front_facing != mirrored;
     let depth = clamp(length(local) / params.far, 0.0, 1.0);
-    // The depth's last bit says which side is seen, so a back face lies one
-    // step behind a front face at the same depth: the depth test keeps the
-    // same fragment in whatever order the culled lists draw them (a surface
-    // drawn twice, facing both ways, would otherwise show the first drawn).
+    // The side bit also makes a back face lie one step behind a front face
+    // at the same depth: the depth test keeps the same fragment in whatever
+    // order the culled lists draw them (a surface drawn twice, facing both
+    // ways, would otherwise show the first drawn).
     let sided = bitcast<f32>((bitcast<u32>(depth) & ~1u) | select(1u, 0u, seen_from_front));
-    var out: HemicubeOut;
-    out.depth = select(sided, 1.0, depth >= 1.0);
-    out.front = vec4f(select(0.0, 1.0, seen_from_front));
-    return out;
+    return select(sided, 1.0, depth >= 1.0);
 }
 
 @fragment
-fn fs_hemicube(in: OpaqueOut, @builtin(front_facing) front_facing: bool) -> HemicubeOut {
-    return hemicube_out(in.local, in.face, front_facing);
+fn fs_hemicube(in: OpaqueOut, @builtin(front_facing) front_facing: bool) -> @builtin(frag_depth) f32 {
+    return hemicube_depth(in.local, in.face, front_facing);
 }
 
 // Alpha-MASK triangles: cut-out fragments let light through.
 @fragment
-fn fs_hemicube_masked(in: CasterOut, @builtin(front_facing) front_facing: bool) -> HemicubeOut {
+fn fs_hemicube_masked(in: CasterOut, @builtin(front_facing) front_facing: bool) -> @builtin(frag_depth) f32 {
     let m = materials[in.material];
     let uv = texture_coordinates(m.base_texture, in.uv0, in.uv1);
     let alpha = m.base_color.a * sample_texture_grad(textures, texture_sampler, m.base_texture, uv, dpdx(uv), dpdy(uv)).a;
     if (alpha < m.emission.w) {
         discard;
     }
-    return hemicube_out(in.local, in.face, front_facing);
+    return hemicube_depth(in.local, in.face, front_facing);
 }

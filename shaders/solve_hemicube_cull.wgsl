@@ -9,7 +9,7 @@
 // beyond one plane of the face's frustum, by a margin over rounding, so the
 // list draws every fragment the whole scene would. The lists' order varies
 // with the GPU's scheduling; the hemicube pass's depth test does not hang on
-// it (`hemicube_out`). A list that would overflow falls back to every
+// it (`hemicube_depth`). A list that would overflow falls back to every
 // opaque caster.
 
 struct CullParams {

@@ -48,8 +48,6 @@ struct ShooterCells {
 @group(0) @binding(7) var<storage, read_write> patch_scale: array<f32>;
 // Near-field, then far-field Σ F_ij A_i / A_j per shooter slot and texel chunk (measure pass).
 @group(0) @binding(8) var<storage, read_write> partials: array<f32>;
-// 1 where the hemicube sees a surface's front (the depth atlas's companion).
-@group(0) @binding(9) var front: texture_2d<f32>;
 // Receivers with a shooter of the batch in their near field, listed by
 // `main` for `near_field` (the list's order varies; each texel's sum does not).
 @group(0) @binding(10) var<storage, read_write> near_list: NearList;
@@ -473,6 +471,13 @@ fn measure(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
     }
 }
 
+// Whether a hemicube depth is of a surface the shooter sees from the front:
+// `hemicube_depth` (solve_hemicube.wgsl) clears the last bit there, and the
+// cleared atlas (1.0) holds no surface.
+fn seen_from_front(stored: f32) -> bool {
+    return stored < 1.0 && (bitcast<u32>(stored) & 1u) == 0u;
+}
+
 // Workgroup per slot: the covered share of the hemicube (surfaces seen from
 // the front, by their delta form factors) over the measured Σ F_ij A_i / A_j
 // becomes the patch's scale.
@@ -510,7 +515,7 @@ fn finish(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_ind
             let r2 = dot(d, d);
             let delta = d.z / (r2 * r2);
             total += delta;
-            if (textureLoad(depth, xy, 0) < 1.0 && textureLoad(front, xy, 0).r > 0.5) {
+            if (seen_from_front(textureLoad(depth, xy, 0))) {
                 covered += delta;
             }
         }

@@ -75,9 +75,6 @@ const MEASURE_SLOTS: u32 = 8;
 /// patch's first shot.
 const NORMALIZE_FROM: f64 = 0.2;
 
-/// Hemicube companion target: 1 where the shooter sees a surface's front.
-const FRONT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
-
 /// Options of the bounce pass, with their defaults.
 #[derive(Clone, Debug)]
 pub struct BounceOptions {
@@ -303,7 +300,6 @@ struct Resources {
     /// Each shooter's unshot light and area centroid by sub-cells of its patch.
     shooter_cells: wgpu::Buffer,
     depth_view: wgpu::TextureView,
-    front_view: wgpu::TextureView,
     casters: Casters,
 }
 
@@ -698,7 +694,6 @@ fn resources(
     let Inputs { texels, shares, patches, patch_coverage, unshot, lightmap } = *inputs;
     let none = wgpu::BufferUsages::empty();
     let depth = gpu.depth_target("solve_hemicube depth", 3 * face * tiles_per_row, face * tile_rows);
-    let front = gpu.render_target("solve_hemicube front", 3 * face * tiles_per_row, face * tile_rows, FRONT_FORMAT);
     let lightmap4: Vec<[f32; 4]> = lightmap.iter().map(|l| [l[0], l[1], l[2], 0.0]).collect();
     Resources {
         params: gpu.uniform_buffer("solve_shoot params", &params),
@@ -753,7 +748,6 @@ fn resources(
             wgpu::BufferUsages::VERTEX,
         ),
         depth_view: depth.create_view(&Default::default()),
-        front_view: front.create_view(&Default::default()),
         casters: Casters::new(gpu, scene, false),
     }
 }
@@ -878,8 +872,6 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             // 7: per-patch form-factor scales, 8: the measure pass's sums
             gpu::storage_entry(7, false, compute),
             gpu::storage_entry(8, false, compute),
-            // 9: where the hemicubes see a surface's front
-            gpu::texture_2d_entry(9, compute, wgpu::TextureSampleType::Float { filterable: false }),
             // 10: receivers in a shooter's near field (listed, then gathered)
             gpu::storage_entry(10, false, compute),
             // 11: the shooters' light by sub-cells, 13: each texel's share of the area that bounces
@@ -900,7 +892,6 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             wgpu::BindGroupEntry { binding: 6, resource: wgpu::BindingResource::TextureView(&r.depth_view) },
             wgpu::BindGroupEntry { binding: 7, resource: r.patch_scale.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 8, resource: r.partials.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 9, resource: wgpu::BindingResource::TextureView(&r.front_view) },
             wgpu::BindGroupEntry { binding: 10, resource: r.near_list.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 11, resource: r.shooter_cells.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 13, resource: r.shares.as_entire_binding() },
@@ -941,7 +932,6 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
     });
 
     let module = gpu.shader(Shader::SolveHemicube);
-    let front_target = [Some(wgpu::ColorTargetState::from(FRONT_FORMAT))];
     let hemicube_pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some("solve_hemicube"),
         bind_group_layouts: &[Some(&hemicube_layout)],
@@ -955,7 +945,7 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
         "vs_hemicube",
         FACE_INSTANCES,
         Some("fs_hemicube"),
-        &front_target,
+        &[],
     );
     let masked = Casters::pipeline(
         gpu,
@@ -965,7 +955,7 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
         "vs_hemicube_masked",
         FACE_INSTANCES,
         Some("fs_hemicube_masked"),
-        &front_target,
+        &[],
     );
 
     Pipelines {
@@ -1002,12 +992,7 @@ fn render_hemicubes(
 ) {
     let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
         label: Some("solve_hemicube"),
-        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-            view: &r.front_view,
-            depth_slice: None,
-            resolve_target: None,
-            ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT), store: wgpu::StoreOp::Store },
-        })],
+        color_attachments: &[],
         depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
             view: &r.depth_view,
             depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
