@@ -6,11 +6,15 @@
 // single-threaded, and that was most of the bounce pass.
 //
 // A triangle is left out of a face's list only when all three corners lie
-// beyond one plane of the face's frustum, by a margin over rounding, so the
-// list draws every fragment the whole scene would. The lists' order varies
-// with the GPU's scheduling; the hemicube pass's depth test does not hang on
-// it (`hemicube_depth`). A list that would overflow falls back to every
-// opaque caster.
+// beyond one plane of the face's frustum, by a margin over rounding, or
+// when it is on a solid's far side from an eye outside the solid's bounds
+// (`surfaces::solids`): a ray from there meets the solid's near side first.
+// So the list draws every fragment of the scene that the depth test would
+// keep, but for pixels on a solid's outline, where the far side ties with
+// the near one and the marks in the depths' low bits picked either. The
+// lists' order varies with the GPU's scheduling; the hemicube pass's depth
+// test does not hang on it (`hemicube_depth`). A list that would overflow
+// falls back to every opaque caster.
 
 struct CullParams {
     triangles: u32,    // opaque caster triangles, first in `culled`
@@ -35,6 +39,35 @@ const CASTER_WORDS: u32 = 9u;
 // The casters' indices (opaque, then alpha-MASK), then a list per face.
 @group(0) @binding(3) var<storage, read_write> culled: array<u32>;
 @group(0) @binding(4) var<storage, read_write> draws: array<atomic<u32>>;
+// Each opaque triangle's solid (NOT_SOLID: none), and the solids.
+@group(0) @binding(5) var<storage, read> triangle_solid: array<u32>;
+@group(0) @binding(6) var<storage, read> solids: array<Solid>;
+
+const NOT_SOLID: u32 = 0xffffffffu;
+
+struct Solid {
+    lo: vec3f,
+    outside_facing: f32,  // 1: the outside is the front, -1: the back
+    hi: vec3f,
+    _pad: f32,
+}
+
+// Whether the triangle (corners `p`, front normal `n`, on `solid`) is on the
+// solid's far side from `eye`, clearly so: an eye outside the bounds, and
+// the triangle turned away from it by more than rounding. The bounds are
+// widened by twice the near plane: the solid's near side is then beyond it
+// wherever a face can see it (|x|, |y| ≤ z), so clipping never opens it.
+fn on_far_side(solid: u32, p: array<vec3f, 3>, n: vec3f, eye: vec3f) -> bool {
+    if (solid == NOT_SOLID) {
+        return false;
+    }
+    let s = solids[solid];
+    if (all(eye >= s.lo - 2.0 * cull.near) && all(eye <= s.hi + 2.0 * cull.near)) {
+        return false;
+    }
+    let to_eye = eye - p[0];
+    return dot(n, to_eye) * s.outside_facing < -1e-4 * length(n) * length(to_eye);
+}
 
 fn caster_position(index: u32) -> vec3f {
     let w = index * CASTER_WORDS;
@@ -73,10 +106,15 @@ fn cull_triangles(@builtin(global_invocation_id) id: vec3u) {
     }
     let corners = vec3u(culled[3u * triangle], culled[3u * triangle + 1u], culled[3u * triangle + 2u]);
     let p = array<vec3f, 3>(caster_position(corners.x), caster_position(corners.y), caster_position(corners.z));
+    let n = cross(p[1] - p[0], p[2] - p[0]);
+    let solid = triangle_solid[triangle];
     for (var first = 0u; first < cull.faces; first += 5u) {
         let shooter = faces[first];
         let m = basis(shooter.normal);
         let origin = lifted_origin(shooter.position, shooter.normal, shooter.lift);
+        if (on_far_side(solid, p, n, origin)) {
+            continue;
+        }
         var all_beyond = 0x1ffffffu;
         for (var k = 0u; k < 3u; k++) {
             let d = p[k] - origin;

@@ -117,6 +117,35 @@ fn nothing_inside_a_closed_room_is_lit_from_below_the_ground() {
     assert!(worst <= 1.5e-4, "light from below leaked into the room: {worst} at {at}, of a radiance of 1");
 }
 
+/// A lamp (an emissive sheet facing down) sealed inside a box whose faces
+/// point outwards, held up over a ground plane. From inside, the lamp sees
+/// only the box's backs; the bounce pass leaves out the far side of a solid
+/// from a shooter outside it, and must not take the lamp for one: the
+/// ground stays dark. Without the box, the same lamp lights it.
+#[test]
+fn a_lamp_sealed_in_a_box_of_outward_faces_lights_nothing_outside() {
+    let gpu = common::gpu();
+    let lamp_over_ground = |boxed: bool| {
+        let mut builder = SceneBuilder::new();
+        let ground = [0.5, 0.5, 0.5, 1.0];
+        builder.object("ground", &MeshData::plane(8.0, 8.0, 4), ground, [0.0; 3], Placement::default());
+        let lamp = Placement::at(Vec3::Y * 2.0).rotated(glam::Quat::from_rotation_x(std::f32::consts::PI));
+        builder.object("lamp", &MeshData::plane(0.8, 0.8, 1), [0.0, 0.0, 0.0, 1.0], [5.0; 3], lamp);
+        if boxed {
+            let shell = [0.5, 0.5, 0.5, 1.0];
+            let at = Placement::at(Vec3::Y * 2.0);
+            builder.object("box", &MeshData::cuboid([1.0, 1.0, 1.0]), shell, [0.0; 3], at);
+        }
+        let dark = common::lights(&EnvironmentMap::constant([0.0; 3]), LightMode::Budget { count: 16 });
+        let baked = common::bake(&gpu, &builder, &dark, &common::options(128));
+        common::values_of(&baked, 0).iter().map(|(_, v)| *v).fold(0.0, f32::max)
+    };
+    let (open, sealed) = (lamp_over_ground(false), lamp_over_ground(true));
+    eprintln!("brightest ground texel: lamp in the open {open:.3}, sealed in the box {sealed:.2e}");
+    assert!(open > 0.1, "the lamp in the open should light the ground: {open}");
+    assert!(sealed <= 1e-3 * open, "light left the sealed box: {sealed} against {open} in the open");
+}
+
 /// A closed 4 × 3 × 4 m room of inward-facing walls (object 0) standing on
 /// a 12 m ground plane (object 1), its floor in the ground's plane.
 fn room_on_ground(room: [f32; 4], ground: [f32; 4]) -> SceneBuilder {

@@ -515,6 +515,13 @@ fn hemicube_faces_drawing_only_the_casters_they_see_give_the_same_bake() {
     // lists every face draws every caster; with little, most faces' lists
     // overflow. corner normalizes its form factors, so the hemicubes'
     // depths and their front-facing marks both count.
+    //
+    // The lists leave out a solid's far side (the sphere, box and torus), which no ray from
+    // outside meets first. Drawn, it ties with the near side along the box's
+    // outline, where the two meet at the same depth and the marks in the
+    // depth's low bits pick the winner: a few hemicube pixels, measured at
+    // 5.3e-4 of the mean texel at most. A triangle wrongly left out is a
+    // hole in a wall or in the box, of the order of the whole light.
     let gpu = common::gpu();
     let map = EnvironmentMap::from_fn(128, 64, |d| if d[1] > 0.0 { [1.0, 0.9, 0.8] } else { [0.1; 3] });
     let lights = common::lights(&map, LightMode::Budget { count: 32 });
@@ -526,10 +533,14 @@ fn hemicube_faces_drawing_only_the_casters_they_see_give_the_same_bake() {
     let culled = with_lists(bake::solve::BounceOptions::default().face_list_bytes);
     let bounce = culled.solution.bounce.as_ref().unwrap();
     assert!(bounce.shots > 0 && bounce.normalized, "{bounce:?}");
+    let lightmap = &culled.solution.lightmap;
+    let mean = lightmap.iter().flatten().sum::<f32>() / (3 * lightmap.len()) as f32;
     for bytes in [0, 256 << 10] {
         let other = with_lists(bytes);
-        let differing = culled.solution.lightmap.iter().zip(&other.solution.lightmap).filter(|(a, b)| a != b).count();
-        eprintln!("lists of at most {bytes} bytes: {differing} texels differ");
-        assert_eq!(differing, 0, "lists of at most {bytes} bytes change the bake");
+        let differences =
+            lightmap.iter().zip(&other.solution.lightmap).flat_map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()));
+        let worst = differences.fold(0.0f32, f32::max);
+        eprintln!("lists of at most {bytes} bytes: largest difference {:.2e} of the mean texel", worst / mean);
+        assert!(worst <= 2e-3 * mean, "lists of at most {bytes} bytes change the bake by {worst} (mean {mean})");
     }
 }

@@ -46,7 +46,7 @@ use anyhow::Result;
 use bytemuck::{Pod, Zeroable};
 use serde::{Deserialize, Serialize};
 
-use super::casters::Casters;
+use super::casters::{Casters, Topology};
 use super::hemicube_cull::HemicubeCull;
 use super::patches::Patches;
 use crate::gpu::{self, Gpu, Shader, read_buffer};
@@ -748,7 +748,7 @@ fn resources(
             wgpu::BufferUsages::VERTEX,
         ),
         depth_view: depth.create_view(&Default::default()),
-        casters: Casters::new(gpu, scene, false),
+        casters: Casters::new(gpu, scene, Topology::Solids),
     }
 }
 

@@ -40,13 +40,22 @@ pub struct Casters {
     /// Index ranges of opaque and of alpha-MASK triangles, one after the other.
     pub(super) opaque: Range<u32>,
     pub(super) masked: Range<u32>,
+    /// The opaque triangles' solids, with `Topology::Solids`.
+    pub(super) solids: Option<surfaces::Solids>,
     pub materials: Materials,
 }
 
+/// What the casters' topology is worked out for.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub enum Topology {
+    /// Mark the vertices on open surfaces, which the direct pass's depth maps read.
+    Sheets,
+    /// Find the solids, whose far sides the bounce pass's cull leaves out.
+    Solids,
+}
+
 impl Casters {
-    /// `sheets`: mark the vertices on open surfaces (`surfaces`), which
-    /// only the direct pass's depth maps read.
-    pub fn new(gpu: &Gpu, scene: &Scene, sheets: bool) -> Casters {
+    pub fn new(gpu: &Gpu, scene: &Scene, topology: Topology) -> Casters {
         let materials = Materials::upload(gpu, scene);
         let default_material = scene.materials.len();
         let mut vertices = Vec::new();
@@ -70,8 +79,9 @@ impl Casters {
                 target.extend(primitive.front_corners(t).map(|i| i + base));
             }
         }
-        if sheets {
-            let positions: Vec<[f32; 3]> = vertices.iter().map(|v| v.position).collect();
+        let positions: Vec<[f32; 3]> = vertices.iter().map(|v| v.position).collect();
+        let solids = (topology == Topology::Solids).then(|| surfaces::solids(&positions, &opaque));
+        if topology == Topology::Sheets {
             for (vertex, open) in vertices.iter_mut().zip(surfaces::open_vertices(&positions, &opaque)) {
                 vertex.sheet = open as u32;
             }
@@ -90,6 +100,7 @@ impl Casters {
             ),
             opaque: 0..opaque_count,
             masked: opaque_count..opaque_count + masked_count,
+            solids,
             materials,
         }
     }

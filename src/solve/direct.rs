@@ -15,7 +15,7 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use super::SolveOptions;
-use super::casters::Casters;
+use super::casters::{Casters, Topology};
 use crate::environment::LightSet;
 use crate::gpu::{self, Gpu, Shader, read_buffer};
 use crate::scene::Scene;
@@ -200,7 +200,7 @@ pub fn run(
         _pad: [0; 3],
     };
 
-    let casters = Casters::new(gpu, scene, true);
+    let casters = Casters::new(gpu, scene, Topology::Sheets);
 
     let params_buffer = gpu.uniform_buffer("solve_direct params", &params);
     // Also the depth maps' instance attributes: each light's direction.

@@ -2,7 +2,8 @@
 //! (`solve_hemicube_cull`), drawn indirectly by the bounce pass. Each face
 //! sees part of the scene, while a draw costs every triangle it names: on a
 //! CPU driver, drawing the whole scene five times a shooter was most of the
-//! bounce pass.
+//! bounce pass. A list also leaves out a solid's far side when the shooter
+//! is outside the solid (`surfaces::solids`): about half of a statue.
 //!
 //! The lists sit in one index buffer after a copy of the casters' indices,
 //! so a face whose list overflows draws every opaque caster instead, and
@@ -12,6 +13,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::casters::Casters;
+use super::surfaces;
 use crate::gpu::{self, Gpu, Shader};
 
 /// Words per face in `draws` (`DRAW_WORDS` in the shader): the indirect
@@ -29,6 +31,17 @@ struct CullParams {
     near: f32,
     row_stride: u32,
     _pad: [u32; 2],
+}
+
+/// Mirrors `Solid` in solve_hemicube_cull.wgsl (`surfaces::Solid`).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct GpuSolid {
+    lo: [f32; 3],
+    /// 1 where the outside is the front, -1 where it is the back.
+    outside_facing: f32,
+    hi: [f32; 3],
+    _pad: f32,
 }
 
 pub struct HemicubeCull {
@@ -90,6 +103,28 @@ impl HemicubeCull {
             _pad: [0; 2],
         };
         let params = gpu.uniform_buffer("solve_hemicube_cull params", &params);
+        // Each opaque triangle's solid, and the solids (one unused where
+        // there is none: a binding holds at least one).
+        let none = vec![surfaces::NOT_SOLID; triangles as usize];
+        let (triangle_solid, solids) = match &casters.solids {
+            Some(s) => (&s.triangle_solid[..], &s.solids[..]),
+            None => (&none[..], &[][..]),
+        };
+        let mut solids: Vec<GpuSolid> = solids
+            .iter()
+            .map(|s| GpuSolid {
+                lo: s.lo.into(),
+                outside_facing: if s.outward { 1.0 } else { -1.0 },
+                hi: s.hi.into(),
+                _pad: 0.0,
+            })
+            .collect();
+        if solids.is_empty() {
+            solids.push(GpuSolid::zeroed());
+        }
+        let triangle_solid =
+            gpu.storage_buffer("solve_hemicube_cull triangle solids", triangle_solid, wgpu::BufferUsages::empty());
+        let solids = gpu.storage_buffer("solve_hemicube_cull solids", &solids, wgpu::BufferUsages::empty());
         let compute = wgpu::ShaderStages::COMPUTE;
         let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("solve_hemicube_cull"),
@@ -101,13 +136,16 @@ impl HemicubeCull {
                 // 3: the indices and lists, 4: the draws (both written)
                 gpu::storage_entry(3, false, compute),
                 gpu::storage_entry(4, false, compute),
+                // 5: each opaque triangle's solid, 6: the solids
+                gpu::storage_entry(5, true, compute),
+                gpu::storage_entry(6, true, compute),
             ],
         });
         let group = gpu::bind_buffers(
             gpu,
             "solve_hemicube_cull",
             &layout,
-            &[&params, &casters.vertices, hemicube_faces, &indices, &draws],
+            &[&params, &casters.vertices, hemicube_faces, &indices, &draws, &triangle_solid, &solids],
         );
         Some(HemicubeCull {
             cull: gpu.compute_pipeline(Shader::SolveHemicubeCull, "cull_triangles", &[&layout]),
