@@ -385,6 +385,42 @@ fn torus_resting_on_a_sunlit_floor_sees_the_shadow_beneath_it_with_its_underside
     }
 }
 
+#[test]
+fn a_small_ball_on_a_large_ground_gets_the_light_the_ground_bounces_under_it() {
+    // A ball of 0.25 m on a 40 m ground, under a sun and a sky: the ball's
+    // lower half is lit mostly by the ground around it. The ground's shooter
+    // patches are 1.25 m (the atlas's cells are one size for the scene), and
+    // a hemicube sees from one point of a patch: shot from cells five times
+    // the ball's width, the lower half's bands got 0.80, 0.72 and 0.82 of the
+    // path tracer's light. Split where a smaller object stands over them,
+    // the cells give 0.86, 0.93 and 0.95 (the contact band keeps the dark
+    // contact found under balls before).
+    let gpu = common::gpu();
+    let radius = 0.25f32;
+    let mut builder = SceneBuilder::new();
+    let grey = [0.5, 0.5, 0.5, 1.0];
+    builder.object("ground", &MeshData::plane(40.0, 40.0, 4), grey, [0.0; 3], Placement::default());
+    let ball = MeshData::sphere(radius, 32, 16);
+    builder.object("ball", &ball, [0.8, 0.8, 0.8, 1.0], [0.0; 3], Placement::at(Vec3::Y * radius));
+    let sun_and_sky = EnvironmentMap::sun_and_sky([0.5, 0.6, 0.8], [0.3, 0.8, 0.5], 1e3, 1f32.to_radians());
+    let lights = common::lights(&sun_and_sky, LightMode::Budget { count: 256 });
+    let baked = common::bake(&gpu, &builder, &lights, &common::options(512));
+    let lower: Vec<usize> = (0..baked.texels.texels.len())
+        .filter(|&i| {
+            let t = &baked.texels.texels[i];
+            t.primitive == 1 && t.area > 0.0 && t.position[1] < radius
+        })
+        .collect();
+    let ratios = bands_against_reference(&baked, &lower, radius, Some(&sun_and_sky));
+    eprintln!(
+        "{} texels on the ball's lower half, bake / reference by band from the contact up: {ratios:.3?}",
+        lower.len()
+    );
+    for (k, ratio) in ratios.iter().enumerate() {
+        assert!((0.83..1.1).contains(ratio), "band {k}: {ratio}");
+    }
+}
+
 /// A white floor with a red wall standing on one edge, under a uniform sky.
 fn floor_and_red_wall(floor_albedo: f32) -> SceneBuilder {
     let mut builder = SceneBuilder::new();

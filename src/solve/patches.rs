@@ -10,8 +10,10 @@
 //! atlas coordinates), so receivers close to it can use the exact
 //! point-to-polygon form factor instead of the far-field disc formula.
 
+use std::collections::HashMap;
+
 use bytemuck::{Pod, Zeroable};
-use glam::{DVec3, Vec3};
+use glam::{DVec3, IVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::texelize::TexelSet;
@@ -68,24 +70,62 @@ fn normal_axis(n: Vec3) -> u32 {
     }
 }
 
-/// Groups `texels` into about `target` patches. `texel_size` is the world
-/// size of one lightmap texel (1 / texels per unit).
+/// A patch's cell is split in four (at most this many times over, down to
+/// a texel) while a smaller object stands over it within its own size: the
+/// hemicube sees from one point, and a small prop on a large floor patch is
+/// lit by parts of the patch that point does not see (a ball's underside
+/// got 0.69 of the reference on a 40 m ground, BENCHMARKS.md).
+const MAX_SPLITS: u8 = 4;
+
+/// Groups `texels` into about `target` patches, and more where a surface
+/// stands close over one (`MAX_SPLITS`). `texel_size` is the world size of
+/// one lightmap texel (1 / texels per unit).
 pub fn build(texels: &TexelSet, target: u32, texel_size: f32) -> Patches {
     let n = texels.texels.len();
     if n == 0 {
         return Patches::default();
     }
     let cell = ((n as f64 / target.max(1) as f64).sqrt().round() as u32).max(1);
-    let key = |i: usize| {
+    // How many times each texel's cell was split.
+    let mut splits = vec![0u8; n];
+    let key = |i: usize, splits: &[u8]| {
         let t = &texels.texels[i];
         let (x, y) = (t.x(texels.width), t.y(texels.width));
-        (t.chart, y / cell, x / cell, normal_axis(t.normal()))
+        let level = splits[i] as u32;
+        let part = (cell >> level).max(1);
+        let sub = (level << 16) | (((y % cell) / part) << 8) | ((x % cell) / part);
+        (t.chart, y / cell, x / cell, normal_axis(t.normal()), sub)
     };
     // Keys computed once, not per comparison (at a 1024² atlas the sort
     // took most of the patch set-up). The index breaks ties, so the order is
     // one and the same in any thread count.
-    let mut keyed: Vec<((u32, u32, u32, u32), u32)> = (0..n).into_par_iter().map(|i| (key(i), i as u32)).collect();
-    keyed.par_sort_unstable();
+    let sorted = |splits: &[u8]| {
+        let mut keyed: Vec<(Key, u32)> = (0..n).into_par_iter().map(|i| (key(i, splits), i as u32)).collect();
+        keyed.par_sort_unstable();
+        keyed
+    };
+    let mut keyed = sorted(&splits);
+    for _ in 0..MAX_SPLITS {
+        if cell < 2 {
+            break;
+        }
+        let groups: Vec<&[(Key, u32)]> = keyed.chunk_by(|a, b| a.0 == b.0).collect();
+        let crowded = crowded(texels, &groups);
+        let mut any = false;
+        for (group, crowded) in groups.iter().zip(crowded) {
+            let level = splits[group[0].1 as usize];
+            if crowded && (cell >> level) >= 2 {
+                any = true;
+                for &(_, i) in *group {
+                    splits[i as usize] += 1;
+                }
+            }
+        }
+        if !any {
+            break;
+        }
+        keyed = sorted(&splits);
+    }
     let order: Vec<u32> = keyed.iter().map(|&(_, i)| i).collect();
 
     // Each patch's range of `order`, then the patches fitted in parallel.
@@ -102,6 +142,73 @@ pub fn build(texels: &TexelSet, target: u32, texel_size: f32) -> Patches {
     let patches =
         ranges.into_par_iter().map(|r| patch(texels, &order[r.clone()], r.start as u32, texel_size)).collect();
     Patches { patches, members: order, texel_patch, cell }
+}
+
+/// A texel's patch: chart, cell row and column, normal axis, and the part
+/// of a split cell.
+type Key = (u32, u32, u32, u32, u32);
+
+/// For each group of texels, whether another group's centroid stands over
+/// it, within twice its radius (half the diagonal of a square of its area)
+/// and in front of its plane (by a quarter of the radius or of the other's
+/// object), on an object (a primitive) smaller than twice the group's
+/// diagonal (the object's world bounding box's diagonal). Groups of the
+/// same size on larger objects (statues on their floor, walls at a corner)
+/// stay whole.
+fn crowded(texels: &TexelSet, groups: &[&[(Key, u32)]]) -> Vec<bool> {
+    let primitives = texels.texels.iter().map(|t| t.primitive + 1).max().unwrap_or(0) as usize;
+    let mut bounds = vec![(Vec3::MAX, Vec3::MIN); primitives];
+    for t in &texels.texels {
+        let b = &mut bounds[t.primitive as usize];
+        *b = (b.0.min(t.position()), b.1.max(t.position()));
+    }
+    let object_size: Vec<f32> = bounds.iter().map(|(lo, hi)| (*hi - *lo).length()).collect();
+    let summary: Vec<(Vec3, Vec3, f32)> = groups
+        .par_iter()
+        .map(|group| {
+            let (mut area, mut centroid, mut normal) = (0.0f64, DVec3::ZERO, Vec3::ZERO);
+            for &(_, i) in *group {
+                let t = &texels.texels[i as usize];
+                area += t.area as f64;
+                centroid += t.position().as_dvec3() * t.area as f64;
+                normal += t.normal() * t.area;
+            }
+            let first = texels.texels[group[0].1 as usize].position();
+            let centroid = if area > 0.0 { (centroid / area).as_vec3() } else { first };
+            (centroid, normal.normalize_or_zero(), (area / 2.0).sqrt() as f32)
+        })
+        .collect();
+    // Centroids in a grid of cells as wide as the farthest reach.
+    let reach = summary.iter().map(|s| 2.0 * s.2).fold(0.0f32, f32::max).max(f32::MIN_POSITIVE);
+    let grid_cell = |p: Vec3| (p / reach).floor().as_ivec3();
+    let mut grid: HashMap<IVec3, Vec<u32>> = HashMap::new();
+    for (g, s) in summary.iter().enumerate() {
+        grid.entry(grid_cell(s.0)).or_default().push(g as u32);
+    }
+    summary
+        .par_iter()
+        .enumerate()
+        .map(|(g, &(centre, normal, radius))| {
+            let home = grid_cell(centre);
+            (-1..=1).any(|dz| {
+                (-1..=1).any(|dy| {
+                    (-1..=1).any(|dx| {
+                        grid.get(&(home + IVec3::new(dx, dy, dz))).is_some_and(|others| {
+                            others.iter().any(|&o| {
+                                let d = summary[o as usize].0 - centre;
+                                let size =
+                                    object_size[texels.texels[groups[o as usize][0].1 as usize].primitive as usize];
+                                o as usize != g
+                                    && d.dot(normal) > 0.25 * radius.min(size)
+                                    && d.length() < 2.0 * radius
+                                    && size < 4.0 * radius
+                            })
+                        })
+                    })
+                })
+            })
+        })
+        .collect()
 }
 
 fn patch(texels: &TexelSet, members: &[u32], first: u32, texel_size: f32) -> Patch {
