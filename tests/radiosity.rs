@@ -276,6 +276,14 @@ fn ball_and_floor(ball_height: f32, radius: f32, glowing_ball: bool) -> SceneBui
     builder
 }
 
+/// The covered texels of primitive `primitive` lower than `height`.
+fn texels_below(baked: &bake::Baked, primitive: u32, height: f32) -> impl Iterator<Item = usize> + '_ {
+    (0..baked.texels.texels.len()).filter(move |&i| {
+        let t = &baked.texels.texels[i];
+        t.primitive == primitive && t.area > 0.0 && t.position[1] < height
+    })
+}
+
 /// Bake / independent CPU path tracer, summed over texels `lower` of `baked`
 /// by height in three bands of `height` above the floor, the contact's first.
 fn bands_against_reference(
@@ -332,13 +340,7 @@ fn ball_resting_on_a_glowing_floor_sees_it_with_its_underside() {
     // a texel off the surface, left the lowest band at 0.77 of the reference.
     let radius = 0.7f32;
     let baked = bake_emitters(&ball_and_floor(radius, radius, false), 128, |_| {});
-    let lower: Vec<usize> = (0..baked.texels.texels.len())
-        .filter(|&i| {
-            let t = &baked.texels.texels[i];
-            t.primitive == 1 && t.area > 0.0 && t.position[1] < radius
-        })
-        .step_by(2)
-        .collect();
+    let lower: Vec<usize> = texels_below(&baked, 1, radius).step_by(2).collect();
     for (k, ratio) in bands_against_reference(&baked, &lower, radius, None).into_iter().enumerate() {
         eprintln!("underside band {k} (from the contact up): bake / reference {ratio:.4}");
         assert!((ratio - 1.0).abs() < 0.05, "band {k}: {ratio}");
@@ -367,12 +369,7 @@ fn torus_resting_on_a_sunlit_floor_sees_the_shadow_beneath_it_with_its_underside
     let sun = EnvironmentMap::from_fn(512, 256, |d| if d[1] > 0.995 { [1000.0; 3] } else { [0.0; 3] });
     let lights = common::lights(&sun, LightMode::Budget { count: 64 });
     let baked = common::bake(&gpu, &builder, &lights, &common::options(128));
-    let lower: Vec<usize> = (0..baked.texels.texels.len())
-        .filter(|&i| {
-            let t = &baked.texels.texels[i];
-            t.primitive == 1 && t.area > 0.0 && t.position[1] < minor
-        })
-        .collect();
+    let lower: Vec<usize> = texels_below(&baked, 1, minor).collect();
     let ratios = bands_against_reference(&baked, &lower, minor, Some(&sun));
     eprintln!("ring underside, bake / reference by band from the contact up: {ratios:.3?}");
     // The contact's band keeps some excess: the floor's own shadow there is
@@ -405,12 +402,7 @@ fn a_small_ball_on_a_large_ground_gets_the_light_the_ground_bounces_under_it() {
     let sun_and_sky = EnvironmentMap::sun_and_sky([0.5, 0.6, 0.8], [0.3, 0.8, 0.5], 1e3, 1f32.to_radians());
     let lights = common::lights(&sun_and_sky, LightMode::Budget { count: 256 });
     let baked = common::bake(&gpu, &builder, &lights, &common::options(512));
-    let lower: Vec<usize> = (0..baked.texels.texels.len())
-        .filter(|&i| {
-            let t = &baked.texels.texels[i];
-            t.primitive == 1 && t.area > 0.0 && t.position[1] < radius
-        })
-        .collect();
+    let lower: Vec<usize> = texels_below(&baked, 1, radius).collect();
     let ratios = bands_against_reference(&baked, &lower, radius, Some(&sun_and_sky));
     eprintln!(
         "{} texels on the ball's lower half, bake / reference by band from the contact up: {ratios:.3?}",
