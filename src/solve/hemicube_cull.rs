@@ -105,10 +105,13 @@ impl HemicubeCull {
         let params = gpu.uniform_buffer("solve_hemicube_cull params", &params);
         // Each opaque triangle's solid, and the solids (one unused where
         // there is none: a binding holds at least one).
-        let none = vec![surfaces::NOT_SOLID; triangles as usize];
+        let none;
         let (triangle_solid, solids) = match &casters.solids {
             Some(s) => (&s.triangle_solid[..], &s.solids[..]),
-            None => (&none[..], &[][..]),
+            None => {
+                none = vec![surfaces::NOT_SOLID; triangles as usize];
+                (&none[..], &[][..])
+            }
         };
         let mut solids: Vec<GpuSolid> = solids
             .iter()

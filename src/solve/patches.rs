@@ -105,12 +105,13 @@ pub fn build(texels: &TexelSet, target: u32, texel_size: f32) -> Patches {
         keyed
     };
     let mut keyed = sorted(&splits);
+    let sizes = object_sizes(texels);
     for _ in 0..MAX_SPLITS {
         if cell < 2 {
             break;
         }
         let groups: Vec<&[(Key, u32)]> = keyed.chunk_by(|a, b| a.0 == b.0).collect();
-        let crowded = crowded(texels, &groups);
+        let crowded = crowded(texels, &groups, &sizes);
         let mut any = false;
         for (group, crowded) in groups.iter().zip(crowded) {
             let level = splits[group[0].1 as usize];
@@ -144,6 +145,17 @@ pub fn build(texels: &TexelSet, target: u32, texel_size: f32) -> Patches {
     Patches { patches, members: order, texel_patch, cell }
 }
 
+/// Per primitive, the diagonal of its texels' world bounding box.
+fn object_sizes(texels: &TexelSet) -> Vec<f32> {
+    let primitives = texels.texels.iter().map(|t| t.primitive + 1).max().unwrap_or(0) as usize;
+    let mut bounds = vec![(Vec3::MAX, Vec3::MIN); primitives];
+    for t in &texels.texels {
+        let b = &mut bounds[t.primitive as usize];
+        *b = (b.0.min(t.position()), b.1.max(t.position()));
+    }
+    bounds.iter().map(|(lo, hi)| (*hi - *lo).length()).collect()
+}
+
 /// A texel's patch: chart, cell row and column, normal axis, and the part
 /// of a split cell.
 type Key = (u32, u32, u32, u32, u32);
@@ -154,15 +166,8 @@ type Key = (u32, u32, u32, u32, u32);
 /// object), on an object (a primitive) smaller than twice the group's
 /// diagonal (the object's world bounding box's diagonal). Groups of the
 /// same size on larger objects (statues on their floor, walls at a corner)
-/// stay whole.
-fn crowded(texels: &TexelSet, groups: &[&[(Key, u32)]]) -> Vec<bool> {
-    let primitives = texels.texels.iter().map(|t| t.primitive + 1).max().unwrap_or(0) as usize;
-    let mut bounds = vec![(Vec3::MAX, Vec3::MIN); primitives];
-    for t in &texels.texels {
-        let b = &mut bounds[t.primitive as usize];
-        *b = (b.0.min(t.position()), b.1.max(t.position()));
-    }
-    let object_size: Vec<f32> = bounds.iter().map(|(lo, hi)| (*hi - *lo).length()).collect();
+/// stay whole. `object_size` is `object_sizes`.
+fn crowded(texels: &TexelSet, groups: &[&[(Key, u32)]], object_size: &[f32]) -> Vec<bool> {
     let summary: Vec<(Vec3, Vec3, f32)> = groups
         .par_iter()
         .map(|group| {

@@ -61,7 +61,7 @@ pub fn solids(positions: &[[f32; 3]], indices: &[u32]) -> Solids {
     let mut sealed = vec![true; count];
     for run in joined.edges.chunk_by(|x, y| x.key == y.key) {
         // Open, more than two triangles on an edge, or two wound alike.
-        if run.len() != 2 || run[0].forward == run[1].forward {
+        if run.len() != 2 || run[0].from == run[1].from {
             let root = joined.pieces.root(run[0].from);
             sealed[root as usize] = false;
         }
@@ -120,8 +120,7 @@ struct Joined {
 struct Edge {
     /// The welded ends, lower first, as one sortable number.
     key: u64,
-    /// Whether the triangle runs along it from the lower end.
-    forward: bool,
+    /// The end the triangle runs along it from.
     from: u32,
 }
 
@@ -134,7 +133,7 @@ impl Joined {
             let Some([a, b, c]) = joined.corners(t) else { continue };
             for (p, q) in [(a, b), (b, c), (c, a)] {
                 joined.pieces.join(p, q);
-                joined.edges.push(Edge { key: (p.min(q) as u64) << 32 | p.max(q) as u64, forward: p < q, from: p });
+                joined.edges.push(Edge { key: (p.min(q) as u64) << 32 | p.max(q) as u64, from: p });
             }
         }
         joined.edges.sort_unstable();
