@@ -36,6 +36,7 @@ use bake::progress::Silent;
 use bake::report::{ReferenceCheck, reference_probes};
 use bake::scene::Scene;
 use bake::solve::TracePoint;
+use bake::solve::patches::Sight;
 use bake::texelize::TexelSet;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -724,7 +725,12 @@ fn bounce_scaling(gpu: &Gpu) -> Result<()> {
         let atlas = unwrap(&scene, &options)?;
         let texels = bake::texelize::run(gpu, &scene, &atlas)?;
         let tpu = atlas.texels_per_unit;
-        let patches = bake::solve::patches::build(&texels, options.solve.bounce.patches, 1.0 / tpu);
+        let patches = bake::solve::patches::build(
+            &texels,
+            options.solve.bounce.patches,
+            1.0 / tpu,
+            Some(Sight { scene: &scene, hidden: None }),
+        );
         let mut bounce = options.solve.bounce.clone();
         bounce.max_shots = Some(SHOTS);
         bounce.tolerance = 0.0;

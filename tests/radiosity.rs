@@ -413,6 +413,41 @@ fn a_small_ball_on_a_large_ground_gets_the_light_the_ground_bounces_under_it() {
     }
 }
 
+#[test]
+fn a_wall_standing_across_the_ground_gets_the_ground_light_down_to_its_foot() {
+    // A wall standing on a ground, across the ground's shooter patches,
+    // under a sun in front of it. A patch whose hemicube stood behind the
+    // wall shot its sunlit half's light from there, and the wall's front
+    // never saw it: the 10 cm bands of the wall's foot came out 0.79, 0.89
+    // and 0.93 of the path tracer's light at 256² (of the bounced light in
+    // its lowest 3 cm, 0.26). Cut where their hemicube's origin cannot see
+    // all of them, the patches give 0.96, 0.95 and 0.95.
+    let gpu = common::gpu();
+    let mut builder = SceneBuilder::new();
+    let grey = [0.5, 0.5, 0.5, 1.0];
+    builder.object("ground", &MeshData::plane(8.0, 8.0, 4), grey, [0.0; 3], Placement::default());
+    builder.object(
+        "wall",
+        &MeshData::plane(3.0, 2.0, 4),
+        [0.8, 0.8, 0.8, 1.0],
+        [0.0; 3],
+        Placement::at(Vec3::new(0.0, 1.0, 0.0)).rotated(Quat::from_rotation_x(90f32.to_radians())),
+    );
+    let sun_and_sky = EnvironmentMap::sun_and_sky([0.5, 0.6, 0.8], [0.3, 0.8, 0.5], 1e3, 1f32.to_radians());
+    let lights = common::lights(&sun_and_sky, LightMode::Budget { count: 256 });
+    let baked = common::bake(&gpu, &builder, &lights, &common::options(256));
+    let height = 0.3;
+    let lower: Vec<usize> = texels_below(&baked, 1, height).collect();
+    let ratios = bands_against_reference(&baked, &lower, height, Some(&sun_and_sky));
+    eprintln!(
+        "{} texels on the wall's foot, bake / reference by 10 cm band from the ground up: {ratios:.3?}",
+        lower.len()
+    );
+    for (k, ratio) in ratios.iter().enumerate() {
+        assert!((0.9..1.1).contains(ratio), "band {k}: {ratio}");
+    }
+}
+
 /// A white floor with a red wall standing on one edge, under a uniform sky.
 fn floor_and_red_wall(floor_albedo: f32) -> SceneBuilder {
     let mut builder = SceneBuilder::new();

@@ -24,6 +24,8 @@ pub(crate) struct Triangle {
     pub normals: Option<[DVec3; 3]>,
     /// Index into the reference's material table.
     pub material: u32,
+    /// Index into `Scene::primitives`.
+    pub primitive: u32,
     /// Index into the reference's per-triangle texture coordinates, or
     /// [`NO_TEXCOORDS`] where the material samples no texture.
     pub texcoords: u32,
@@ -460,6 +462,7 @@ mod tests {
                     face: (b - a).cross(d - a).normalize(),
                     normals: None,
                     material: i as u32 % 3,
+                    primitive: 0,
                     texcoords: NO_TEXCOORDS,
                 }
             })

@@ -318,7 +318,11 @@ fn scene_triangles(scene: &Scene) -> Vec<(usize, usize, Triangle)> {
                     if v.is_finite() { v } else { DVec3::ZERO }
                 })
             });
-            out.push((pi, t, Triangle { v0: a, e1, e2, face, normals, material, texcoords: NO_TEXCOORDS }));
+            out.push((
+                pi,
+                t,
+                Triangle { v0: a, e1, e2, face, normals, material, primitive: pi as u32, texcoords: NO_TEXCOORDS },
+            ));
         }
     }
     out
@@ -565,6 +569,13 @@ impl Occluders {
     /// Whether any triangle crosses the segment from `a` to `b` (ends excluded).
     pub(crate) fn blocks(&self, a: DVec3, b: DVec3) -> bool {
         self.0.occluded(a, b - a, 1.0, None, &bvh::every_hit)
+    }
+
+    /// Whether a triangle that `counts` accepts (given its primitive's index
+    /// and its front normal) crosses the segment from `a` to `b` (ends
+    /// excluded).
+    pub(crate) fn blocks_where(&self, a: DVec3, b: DVec3, counts: impl Fn(u32, DVec3) -> bool) -> bool {
+        self.0.occluded(a, b - a, 1.0, None, &|t: &Triangle, _, _| counts(t.primitive, t.face))
     }
 }
 

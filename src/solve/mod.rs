@@ -130,7 +130,12 @@ pub fn run(
     } else if !sees_itself {
         skip(&mut skipped, "bounce", "no surface sees another (every texel sees open sky in every direction)");
     } else {
-        let patches = patches::build(texels, options.bounce.patches, texel_size);
+        let patches = patches::build(
+            texels,
+            options.bounce.patches,
+            texel_size,
+            Some(patches::Sight { scene, hidden: overlaps.as_ref().map(|o| o.hidden.as_slice()) }),
+        );
         // Overlapping surfaces bounce the light of their place once between
         // them: the bounce pass weighs each texel by its share of the area.
         let stats = bounce::run(

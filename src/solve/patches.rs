@@ -16,6 +16,8 @@ use bytemuck::{Pod, Zeroable};
 use glam::{DVec3, IVec3, Vec3};
 use rayon::prelude::*;
 
+use crate::reference::Occluders;
+use crate::scene::Scene;
 use crate::texelize::TexelSet;
 
 /// A patch as the GPU sees it. Mirrors `struct Patch` in common.wgsl.
@@ -77,10 +79,20 @@ fn normal_axis(n: Vec3) -> u32 {
 /// got 0.69 of the reference on a 40 m ground, BENCHMARKS.md).
 const MAX_SPLITS: u8 = 4;
 
+/// A patch is cut into at most this many parts by what its hemicube's
+/// origin sees (`split_by_sight`).
+const MAX_PARTS: u32 = 4;
+/// Only surfaces turned at least this far from a patch (cosine) cut it: a
+/// wall standing on a floor, not a ball's underside touching it.
+const STANDING_COS: f64 = 0.5;
+/// Sight lines run this far off the surface, texels.
+const SIGHT_CLEARANCE_TEXELS: f32 = 0.25;
+
 /// Groups `texels` into about `target` patches, and more where a surface
-/// stands close over one (`MAX_SPLITS`). `texel_size` is the world size of
-/// one lightmap texel (1 / texels per unit).
-pub fn build(texels: &TexelSet, target: u32, texel_size: f32) -> Patches {
+/// stands close over one (`MAX_SPLITS`) or across one (`split_by_sight`,
+/// where `sight` is given). `texel_size` is the world size of one lightmap
+/// texel (1 / texels per unit).
+pub fn build(texels: &TexelSet, target: u32, texel_size: f32, sight: Option<Sight>) -> Patches {
     let n = texels.texels.len();
     if n == 0 {
         return Patches::default();
@@ -94,7 +106,7 @@ pub fn build(texels: &TexelSet, target: u32, texel_size: f32) -> Patches {
         let level = splits[i] as u32;
         let part = (cell >> level).max(1);
         let sub = (level << 16) | (((y % cell) / part) << 8) | ((x % cell) / part);
-        (t.chart, y / cell, x / cell, normal_axis(t.normal()), sub)
+        (t.chart, y / cell, x / cell, normal_axis(t.normal()), sub, 0)
     };
     // Keys computed once, not per comparison (at a 1024² atlas the sort
     // took most of the patch set-up). The index breaks ties, so the order is
@@ -127,6 +139,9 @@ pub fn build(texels: &TexelSet, target: u32, texel_size: f32) -> Patches {
         }
         keyed = sorted(&splits);
     }
+    if let Some(sight) = sight {
+        keyed = split_by_sight(texels, keyed, texel_size, &sight);
+    }
     let order: Vec<u32> = keyed.iter().map(|&(_, i)| i).collect();
 
     // Each patch's range of `order`, then the patches fitted in parallel.
@@ -156,9 +171,149 @@ fn object_sizes(texels: &TexelSet) -> Vec<f32> {
     bounds.iter().map(|(lo, hi)| (*hi - *lo).length()).collect()
 }
 
-/// A texel's patch: chart, cell row and column, normal axis, and the part
-/// of a split cell.
-type Key = (u32, u32, u32, u32, u32);
+/// A texel's patch: chart, cell row and column, normal axis, the part of a
+/// split cell, and the part `split_by_sight` put it in.
+type Key = (u32, u32, u32, u32, u32, u32);
+
+/// What `split_by_sight` looks through: the texels' scene, and which texels
+/// lie hidden under another surface (`overlaps`). Hidden texels take no
+/// part in it: a floor's texels under a statue's base are behind the statue
+/// from anywhere, and they bounce no light.
+#[derive(Clone, Copy)]
+pub struct Sight<'a> {
+    pub scene: &'a Scene,
+    pub hidden: Option<&'a [bool]>,
+}
+
+/// Cuts each group of `keyed` (sorted by key) into the parts its hemicube
+/// would see from different places: the texels its origin sees, then of
+/// the rest those their own origin sees, and so on (`MAX_PARTS`). A wall
+/// standing across a floor's cell hid the far side's texels from the
+/// origin on the near side, and the cell's light, shot from there, reached
+/// the wall's foot on one side only (its lowest 3 cm got 0.26 of the path
+/// tracer's bounced light, BENCHMARKS.md). Only other primitives block a
+/// sight line (a chord across a convex patch dips under its own facets),
+/// and only surfaces standing up from the patch (`STANDING_COS`): a ball's
+/// or a ring's underside touching a floor cut its cells into slivers around
+/// the contact, whose parallelograms (their atlas cells' bounds) then lit
+/// the contact as if it were open floor (the corner fixture's ring: 4.7 %
+/// RMSE, 6.6–7.6 % in the variants that let them cut). An origin that sees none of its texels (under the floor,
+/// inside an object resting on them) leaves the group whole.
+fn split_by_sight(texels: &TexelSet, keyed: Vec<(Key, u32)>, texel_size: f32, sight: &Sight) -> Vec<(Key, u32)> {
+    let occluders = Occluders::new(sight.scene);
+    let hidden = |i: u32| sight.hidden.is_some_and(|h| h[i as usize]);
+    let groups: Vec<&[(Key, u32)]> = keyed.chunk_by(|a, b| a.0 == b.0).collect();
+    let parts: Vec<Vec<u32>> = groups
+        .par_iter()
+        .map(|group| {
+            // Hidden texels stay in the first part.
+            let members: Vec<u32> = group.iter().map(|&(_, i)| i).filter(|&i| !hidden(i)).collect();
+            let mut parts = sight_parts(texels, &members, texel_size, &occluders).into_iter();
+            group.iter().map(|&(_, i)| if hidden(i) { 0 } else { parts.next().unwrap_or(0) }).collect::<Vec<u32>>()
+        })
+        .collect();
+    let mut split: Vec<(Key, u32)> = groups
+        .iter()
+        .zip(parts)
+        .flat_map(|(group, parts)| group.iter().zip(parts).map(|(&(k, i), part)| ((k.0, k.1, k.2, k.3, k.4, part), i)))
+        .collect();
+    split.par_sort_unstable();
+    split
+}
+
+/// The part of each of `members` (`split_by_sight`).
+fn sight_parts(texels: &TexelSet, members: &[u32], texel_size: f32, occluders: &Occluders) -> Vec<u32> {
+    const UNSET: u32 = u32::MAX;
+    let mut parts = vec![UNSET; members.len()];
+    if members.is_empty() {
+        return parts;
+    }
+    let clearance = (SIGHT_CLEARANCE_TEXELS * texel_size) as f64;
+    for part in 0..MAX_PARTS {
+        let left: Vec<usize> = (0..members.len()).filter(|&k| parts[k] == UNSET).collect();
+        if left.is_empty() {
+            break;
+        }
+        let ids: Vec<u32> = left.iter().map(|&k| members[k]).collect();
+        let frame = hemicube_frame(texels, &ids, texel_size);
+        let normal = frame.normal.as_dvec3();
+        let eye = frame.origin().as_dvec3() + normal * clearance;
+        let last = part + 1 == MAX_PARTS;
+        let seen: Vec<bool> = left
+            .iter()
+            .map(|&k| {
+                let t = &texels.texels[members[k] as usize];
+                // Sight lines run in the eye's plane, across the patch: off
+                // the texel's own face, one touching another surface (a
+                // statue's base on the floor, a ring's underside) would step
+                // through it, and a line up to a patch that faces the floor
+                // from just above it would pass through the floor.
+                let position = t.position().as_dvec3();
+                let at = position + normal * (eye - position).dot(normal);
+                let standing =
+                    |primitive: u32, face: DVec3| primitive != t.primitive && face.dot(normal).abs() < STANDING_COS;
+                last || !occluders.blocks_where(eye, at, standing)
+            })
+            .collect();
+        let hidden = seen.iter().filter(|&&s| !s).count();
+        let whole = hidden == 0 || hidden == left.len();
+        for (&k, &seen) in left.iter().zip(&seen) {
+            if seen || whole {
+                parts[k] = part;
+            }
+        }
+        if whole {
+            break;
+        }
+    }
+    parts
+}
+
+/// Where a patch's hemicube stands: its texels' area-weighted centroid and
+/// mean normal, and how far above the centroid it starts.
+struct HemicubeFrame {
+    centroid: Vec3,
+    normal: Vec3,
+    area: f64,
+    lift: f32,
+}
+
+impl HemicubeFrame {
+    fn origin(&self) -> Vec3 {
+        self.centroid + self.normal * self.lift
+    }
+}
+
+fn hemicube_frame(texels: &TexelSet, members: &[u32], texel_size: f32) -> HemicubeFrame {
+    let mut area = 0.0f64;
+    let mut centroid = DVec3::ZERO;
+    let mut normal = Vec3::ZERO;
+    for &i in members {
+        let t = &texels.texels[i as usize];
+        area += t.area as f64;
+        centroid += t.position().as_dvec3() * t.area as f64;
+        normal += t.normal() * t.area.max(1e-30);
+    }
+    let first_texel = &texels.texels[members[0] as usize];
+    let centroid = if area > 0.0 { (centroid / area).as_vec3() } else { first_texel.position() };
+    let normal = normal.try_normalize().unwrap_or(Vec3::Y);
+    // The hemicube must start above the patch's own surface, or it sees the
+    // surface from behind and its view is blocked. Texel centres give the
+    // rise above the centroid's plane; between them a facet tilted from the
+    // normal by θ rises up to half a texel's diagonal × sin θ more.
+    let mut lift = 0.0f32;
+    let mut tilt = 0.0f32;
+    for &i in members {
+        let t = &texels.texels[i as usize];
+        lift = lift.max((t.position() - centroid).dot(normal));
+        // sin θ (1 for a facet turned 90° or more away).
+        let face = Vec3::from(t.face_normal);
+        let sin = if face.dot(normal) > 0.0 { face.cross(normal).length() } else { 1.0 };
+        tilt = tilt.max(sin);
+    }
+    let lift = lift + std::f32::consts::FRAC_1_SQRT_2 * texel_size * tilt;
+    HemicubeFrame { centroid, normal, area, lift }
+}
 
 /// For each group of texels, whether another group's centroid stands over
 /// it, within twice its radius (half the diagonal of a square of its area)
@@ -217,33 +372,8 @@ fn crowded(texels: &TexelSet, groups: &[&[(Key, u32)]], object_size: &[f32]) -> 
 }
 
 fn patch(texels: &TexelSet, members: &[u32], first: u32, texel_size: f32) -> Patch {
-    let mut area = 0.0f64;
-    let mut centroid = DVec3::ZERO;
-    let mut normal = Vec3::ZERO;
-    for &i in members {
-        let t = &texels.texels[i as usize];
-        area += t.area as f64;
-        centroid += t.position().as_dvec3() * t.area as f64;
-        normal += t.normal() * t.area.max(1e-30);
-    }
+    let HemicubeFrame { centroid, normal, area, lift } = hemicube_frame(texels, members, texel_size);
     let first_texel = &texels.texels[members[0] as usize];
-    let centroid = if area > 0.0 { (centroid / area).as_vec3() } else { first_texel.position() };
-    let normal = normal.try_normalize().unwrap_or(Vec3::Y);
-    // The hemicube must start above the patch's own surface, or it sees the
-    // surface from behind and its view is blocked. Texel centres give the
-    // rise above the centroid's plane; between them a facet tilted from the
-    // normal by θ rises up to half a texel's diagonal × sin θ more.
-    let mut lift = 0.0f32;
-    let mut tilt = 0.0f32;
-    for &i in members {
-        let t = &texels.texels[i as usize];
-        lift = lift.max((t.position() - centroid).dot(normal));
-        // sin θ (1 for a facet turned 90° or more away).
-        let face = Vec3::from(t.face_normal);
-        let sin = if face.dot(normal) > 0.0 { face.cross(normal).length() } else { 1.0 };
-        tilt = tilt.max(sin);
-    }
-    let lift = lift + std::f32::consts::FRAC_1_SQRT_2 * texel_size * tilt;
 
     // Affine fit P(x, y) ≈ c + U (x − x̄) + V (y − ȳ), from the texels that
     // lie wholly on the surface (border texels take an inset position, not
@@ -411,7 +541,7 @@ mod tests {
     #[test]
     fn patches_cover_every_texel_once_and_keep_area() {
         let texels = grid();
-        let patches = build(&texels, 4, 0.1);
+        let patches = build(&texels, 4, 0.1, None);
         assert_eq!(patches.patches.len(), 4);
         let mut seen = patches.members.clone();
         seen.sort();
@@ -423,7 +553,7 @@ mod tests {
     #[test]
     fn a_full_cell_maps_to_its_exact_square() {
         let texels = grid();
-        let patches = build(&texels, 4, 0.1);
+        let patches = build(&texels, 4, 0.1, None);
         let p = &patches.patches[0];
         // Texels 0..4 in x and y: centres 0..0.3, so the cell spans −0.05..0.35.
         assert!((Vec3::from(p.rect_centre) - Vec3::new(0.15, 0.0, 0.15)).length() < 1e-5);
@@ -443,7 +573,7 @@ mod tests {
         for t in &mut texels.texels {
             t.position[2] *= 1e-3;
         }
-        let patches = build(&texels, 4, 0.1);
+        let patches = build(&texels, 4, 0.1, None);
         for p in &patches.patches {
             let rect_area = 4.0 * Vec3::from(p.half_u).cross(Vec3::from(p.half_v)).length();
             assert!((rect_area - p.area).abs() < 1e-5, "rect {rect_area} for area {}", p.area);
