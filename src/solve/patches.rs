@@ -197,8 +197,9 @@ pub struct Sight<'a> {
 /// or a ring's underside touching a floor cut its cells into slivers around
 /// the contact, whose parallelograms (their atlas cells' bounds) then lit
 /// the contact as if it were open floor (the corner fixture's ring: 4.7 %
-/// RMSE, 6.6–7.6 % in the variants that let them cut). An origin that sees none of its texels (under the floor,
-/// inside an object resting on them) leaves the group whole.
+/// RMSE, 6.6–7.6 % in the variants that let them cut). An origin that sees
+/// none of its texels (under the floor, inside an object resting on them)
+/// leaves the group whole.
 fn split_by_sight(texels: &TexelSet, keyed: Vec<(Key, u32)>, texel_size: f32, sight: &Sight) -> Vec<(Key, u32)> {
     let occluders = Occluders::new(sight.scene);
     let hidden = |i: u32| sight.hidden.is_some_and(|h| h[i as usize]);
