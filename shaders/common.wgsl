@@ -176,6 +176,9 @@ struct BounceParams {
 // cell: where in the patch its unshot light is, for the near field.
 const SUB_CELLS: u32 = 4u;
 const SUB_CELL_COUNT: u32 = 16u;
+// What is kept per sub-cell of a batch's shooter (solve_patch_power.wgsl's
+// `shooter_cells`): three rows of SUB_CELL_COUNT vectors per slot.
+const SUB_CELL_ROWS: u32 = 3u;
 
 // Totals the select pass leaves for the CPU. Mirrors `bounce::Stats`.
 struct BounceStats {

@@ -19,8 +19,13 @@
 // The batch's shooters (chosen by solve_select), a uniform buffer as in
 // solve_shoot.wgsl.
 @group(0) @binding(7) var<uniform> shooters: ShooterBatch;
-// Per shooter slot k and sub-cell c of its patch: at k·2·SUB_CELL_COUNT + c
-// (Σ ΔL·A rgb, Σ A), at SUB_CELL_COUNT further the area centroid.
+// Per shooter slot k and sub-cell c of its patch, at
+// k·SUB_CELL_ROWS·SUB_CELL_COUNT + c: (Σ ΔL·A rgb, Σ A); SUB_CELL_COUNT
+// further, the area centroid; twice that further, the unit area-weighted
+// mean normal: where the patch's surface is and which way it faces, part by
+// part, for the near field. The first normal's w is 1 where some sub-cell
+// turns from the patch's normal by more than FLAT_COS allows: a curved
+// patch, integrated part by part.
 @group(0) @binding(8) var<storage, read_write> shooter_cells: array<vec4f>;
 // Per texel: the share of its area that bounces light (src/solve/overlaps.rs):
 // its unshot light counts for that share of its area.
@@ -66,6 +71,12 @@ fn sub_cell(texel: Texel) -> u32 {
     return cy * SUB_CELLS + cx;
 }
 
+// A patch whose sub-cells' mean normals all lie within about 2.5° of its
+// own is flat.
+const FLAT_COS: f32 = 0.999;
+
+var<workgroup> curved: atomic<u32>;
+
 // One workgroup per shooter slot, one invocation per sub-cell; run before
 // the shoot pass clears the shooters' unshot light.
 @compute @workgroup_size(16)
@@ -75,6 +86,7 @@ fn shooter_cells_of_batch(@builtin(workgroup_id) group: vec3<u32>, @builtin(loca
     var power = vec3f(0.0);
     var area = 0.0;
     var centroid = vec3f(0.0);
+    var normal = vec3f(0.0);
     if (s.patch_index != NO_TRIANGLE) {
         let own = patches[s.patch_index];
         for (var m = 0u; m < own.count; m++) {
@@ -86,10 +98,18 @@ fn shooter_cells_of_batch(@builtin(workgroup_id) group: vec3<u32>, @builtin(loca
                 power += unshot[i].rgb * texel.area * shares[i];
                 area += texel.area;
                 centroid += texel.position * texel.area;
+                normal += texel.normal * texel.area;
             }
         }
     }
-    let base = k * 2u * SUB_CELL_COUNT;
+    let base = k * SUB_CELL_ROWS * SUB_CELL_COUNT;
     shooter_cells[base + c] = vec4f(power, area);
     shooter_cells[base + SUB_CELL_COUNT + c] = vec4f(select(vec3f(0.0), centroid / area, area > 0.0), 0.0);
+    let facing = select(vec3f(0.0), normalize(normal), dot(normal, normal) > 0.0);
+    if (area > 0.0 && dot(facing, s.normal) < FLAT_COS) {
+        atomicOr(&curved, 1u);
+    }
+    workgroupBarrier();
+    let is_curved = f32(atomicLoad(&curved));
+    shooter_cells[base + 2u * SUB_CELL_COUNT + c] = vec4f(facing, select(0.0, is_curved, c == 0u));
 }

@@ -119,6 +119,62 @@ fn closed_room_with_one_emitting_wall_keeps_the_mean() {
     }
 }
 
+/// The triangles of `sphere` whose centroid `keep` accepts, turned to face
+/// the sphere's inside.
+fn inside_of(sphere: &MeshData, keep: impl Fn(Vec3) -> bool) -> MeshData {
+    let mut part = MeshData::default();
+    for triangle in sphere.indices.chunks(3) {
+        let corner = |k: usize| Vec3::from(sphere.positions[triangle[k] as usize]);
+        if !keep((corner(0) + corner(1) + corner(2)) / 3.0) {
+            continue;
+        }
+        for &i in &[triangle[0], triangle[2], triangle[1]] {
+            part.indices.push(part.positions.len() as u32);
+            part.positions.push(sphere.positions[i as usize]);
+            part.normals.push((-Vec3::from(sphere.normals[i as usize])).to_array());
+            part.uv0.push(sphere.uv0[i as usize]);
+        }
+    }
+    part
+}
+
+fn mesh_area(mesh: &MeshData) -> f64 {
+    let p = |i: u32| Vec3::from(mesh.positions[i as usize]).as_dvec3();
+    mesh.indices.chunks(3).map(|t| 0.5 * (p(t[1]) - p(t[0])).cross(p(t[2]) - p(t[0])).length()).sum()
+}
+
+#[test]
+fn the_inside_of_a_sphere_lit_by_a_glowing_cap_is_evenly_lit() {
+    // Inside a sphere every patch's form factor to a point is A/(4πR²)
+    // wherever the two are, so a glowing cap lights the whole inside evenly:
+    // L_lm = Le · A_cap / A_sphere / (1 − ρ) everywhere. Patches of 64 to
+    // the sphere are curved (45° across); one flat parallelogram standing
+    // in for one of them in the near field hovered in front of its
+    // neighbours and lit them up to 1.47× the mean.
+    let sphere = MeshData::sphere(1.0, 48, 24);
+    let cap = inside_of(&sphere, |c| c.y > 0.8);
+    let rest = inside_of(&sphere, |c| c.y <= 0.8);
+    let rho = 0.5;
+    let mut builder = SceneBuilder::new();
+    builder.object("cap", &cap, [rho, rho, rho, 1.0], [1.0; 3], Placement::default());
+    builder.object("rest", &rest, [rho, rho, rho, 1.0], [0.0; 3], Placement::default());
+    let baked = bake_emitters(&builder, 128, |o| o.solve.bounce.patches = 64);
+    let expected = mesh_area(&cap) / (mesh_area(&cap) + mesh_area(&rest)) / (1.0 - rho as f64);
+    let mean = area_mean(&baked, &[0, 1], |i| baked.solution.lightmap[i][0]);
+    let values: Vec<f64> = (0..baked.texels.texels.len())
+        .filter(|&i| baked.texels.texels[i].area > 0.0)
+        .map(|i| baked.solution.lightmap[i][0] as f64 / mean)
+        .collect();
+    let spread = (values.iter().map(|v| (v - 1.0).powi(2)).sum::<f64>() / values.len() as f64).sqrt();
+    let brightest = values.iter().copied().fold(0.0, f64::max);
+    eprintln!("mean {mean:.4} (expected {expected:.4}), RMS spread {:.2} %, brightest {brightest:.3}", spread * 100.0);
+    assert!((mean / expected - 1.0).abs() < 0.05, "mean {mean} vs {expected}");
+    // A patch does not light its own texels, which a concave patch should:
+    // the cap reads about 8 % low. Nothing may read far above the mean.
+    assert!(brightest < 1.15, "a texel reads {brightest} × the mean");
+    assert!(spread < 0.04, "RMS spread {spread}");
+}
+
 #[test]
 fn a_floor_laid_twice_or_just_over_itself_glows_and_reflects_once() {
     // A copy of the floor in the floor's plane, or a centimetre over it (a

@@ -60,6 +60,8 @@ const _: () = assert!(MAX_SHOOTERS <= u32::BITS);
 /// Parts a shooter patch's light is summed by for the near field
 /// (`SUB_CELL_COUNT` in common.wgsl).
 const SUB_CELL_COUNT: usize = 16;
+/// What is kept per sub-cell (power and area, centroid, normal; `SUB_CELL_ROWS`).
+const SUB_CELL_ROWS: usize = 3;
 
 /// Texels one workgroup of the form-factor measure pass sums
 /// (`MEASURE_CHUNK` in solve_shoot.wgsl).
@@ -738,8 +740,8 @@ fn resources(
         near_args: gpu.zeroed_storage_buffer::<u32>("solve_shoot near-field dispatch", 3, wgpu::BufferUsages::INDIRECT),
         shooter_cells: gpu.storage_buffer(
             "solve_patch_power shooter cells",
-            // Per slot and sub-cell: unshot power and area, then the centroid.
-            &vec![[0f32; 4]; MAX_SHOOTERS as usize * 2 * SUB_CELL_COUNT],
+            // Per slot and sub-cell: unshot power and area, the centroid, the normal.
+            &vec![[0f32; 4]; MAX_SHOOTERS as usize * SUB_CELL_ROWS * SUB_CELL_COUNT],
             wgpu::BufferUsages::UNIFORM,
         ),
         hemicube_faces: gpu.zeroed_storage_buffer::<HemicubeFace>(
