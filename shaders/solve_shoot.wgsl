@@ -279,42 +279,65 @@ fn shot_geometry(texel: Texel, s: Shooter, k: u32) -> vec2f {
 
 // Close to the shooter the disc formula fails (a floor texel next to a wall
 // would miss most of the wall): the patch is integrated exactly. A flat
-// patch is its parallelogram (`near_radiance` says where on it its light
-// is). A curved one is integrated part by part: each sub-cell a square of
-// its own area at its centroid, facing its own mean normal, lighting only
-// what lies in front of it. One flat parallelogram standing in for a
-// patch on a curved surface (a statue's flank, 20 cm across) hovered in
-// front of its neighbours a few centimetres away and lit them up to 4× too
-// bright. (Squares for a flat patch left gaps and overlaps that darkened a
-// ball's underside a centimetre over the floor by 5 %.)
-//
-// The form factor (x) and the unshot radiance it brings (yzw).
-fn near_shot(texel: Texel, s: Shooter, k: u32) -> vec4f {
-    let base = k * SUB_CELL_ROWS * SUB_CELL_COUNT;
-    if (shooter_cells.items[base + 2u * SUB_CELL_COUNT].w == 0.0) {
-        let f = parallelogram_form_factor(texel.position, texel.normal, s.rect_centre, s.half_u, s.half_v)
-            * min(s.area / max(s.rect_area, 1e-30), 1.0);
-        return vec4f(f, f * near_radiance(texel, s, k));
+// patch is its parallelogram, scaled to the patch's true area. A curved
+// one is integrated part by part (`sub_cell_form_factor`): one flat
+// parallelogram standing in for a patch on a curved surface (a statue's
+// flank, 20 cm across) hovered in front of its neighbours a few
+// centimetres away and lit them up to 4× too bright.
+fn near_form_factor(texel: Texel, s: Shooter, k: u32) -> f32 {
+    if (!is_curved(k)) {
+        return flat_form_factor(texel, s);
     }
-    var shot = vec4f(0.0);
+    var f = 0.0;
     for (var c = 0u; c < SUB_CELL_COUNT; c++) {
-        let cell = shooter_cells.items[base + c];
-        let centroid = shooter_cells.items[base + SUB_CELL_COUNT + c].xyz;
-        let facing = shooter_cells.items[base + 2u * SUB_CELL_COUNT + c].xyz;
-        let normal = select(s.normal, facing, dot(facing, facing) > 0.0);
-        if (cell.w > 0.0 && dot(texel.position - centroid, normal) > 0.0) {
-            let half_side = 0.5 * sqrt(cell.w);
-            let u = tangent_along(normal, s.half_u) * half_side;
-            let f = parallelogram_form_factor(texel.position, texel.normal, centroid, u, cross(normal, u));
-            shot += f * vec4f(1.0, cell.rgb / cell.w);
-        }
+        f += sub_cell_form_factor(texel, s, k, c);
     }
-    return shot;
+    return f;
 }
 
-// The near-field form factor from shooter `s` (slot `k`) to `texel`.
-fn near_form_factor(texel: Texel, s: Shooter, k: u32) -> f32 {
-    return near_shot(texel, s, k).x;
+// The unshot light a near-field receiver takes from shooter `s` (slot
+// `k`): as `near_form_factor`, a flat patch's by where on it its light is
+// (`near_radiance`), a curved one's by each sub-cell's own.
+fn near_light(texel: Texel, s: Shooter, k: u32) -> vec3f {
+    if (!is_curved(k)) {
+        return flat_form_factor(texel, s) * near_radiance(texel, s, k);
+    }
+    let base = k * SUB_CELL_ROWS * SUB_CELL_COUNT;
+    var light = vec3f(0.0);
+    for (var c = 0u; c < SUB_CELL_COUNT; c++) {
+        let cell = shooter_cells.items[base + c];
+        light += sub_cell_form_factor(texel, s, k, c) * (cell.rgb / max(cell.w, 1e-30));
+    }
+    return light;
+}
+
+// Whether the shooter in slot `k` is curved (solve_patch_power.wgsl
+// marks it in its first sub-cell's normal).
+fn is_curved(k: u32) -> bool {
+    return shooter_cells.items[(k * SUB_CELL_ROWS + 2u) * SUB_CELL_COUNT].w != 0.0;
+}
+
+fn flat_form_factor(texel: Texel, s: Shooter) -> f32 {
+    return parallelogram_form_factor(texel.position, texel.normal, s.rect_centre, s.half_u, s.half_v)
+        * min(s.area / max(s.rect_area, 1e-30), 1.0);
+}
+
+// The form factor of sub-cell `c` of shooter `s` (slot `k`): a square of
+// its own area at its centroid, facing its own mean normal, lighting only
+// what lies in front of it. (Squares for a flat patch too left gaps and
+// overlaps that darkened a ball's underside a centimetre over the floor by
+// 5 %.)
+fn sub_cell_form_factor(texel: Texel, s: Shooter, k: u32, c: u32) -> f32 {
+    let base = k * SUB_CELL_ROWS * SUB_CELL_COUNT;
+    let area = shooter_cells.items[base + c].w;
+    let centroid = shooter_cells.items[base + SUB_CELL_COUNT + c].xyz;
+    let facing = shooter_cells.items[base + 2u * SUB_CELL_COUNT + c].xyz;
+    let normal = select(s.normal, facing, dot(facing, facing) > 0.0);
+    if (!(area > 0.0 && dot(texel.position - centroid, normal) > 0.0)) {
+        return 0.0;
+    }
+    let u = tangent_along(normal, s.half_u) * (0.5 * sqrt(area));
+    return parallelogram_form_factor(texel.position, texel.normal, centroid, u, cross(normal, u));
 }
 
 // The unit vector in the plane across `normal` nearest `towards` (any one
@@ -422,7 +445,7 @@ fn near_field(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgro
     for (var slots = entry.y; slots != 0u; slots &= slots - 1u) {
         let k = firstTrailingBit(slots);
         let s = shooters.items[k];
-        gathered += near_shot(texel, s, k).yzw;
+        gathered += near_light(texel, s, k);
     }
     lightmap[i] += vec4f(gathered, 0.0);
     unshot[i] += vec4f(texel.albedo * gathered, luminance(gathered) * texel.area * shares[i]);
