@@ -94,6 +94,9 @@ struct Args {
     /// Grid bakes without the supersample fix-up (its cost is the difference).
     #[arg(long)]
     no_supersample: bool,
+    /// Grid bakes without the contact fix-up (its cost is the difference).
+    #[arg(long)]
+    no_contact_trace: bool,
     /// Budget lights of the per-vertex comparison (at each of `--sizes`).
     #[arg(long, default_value_t = 384)]
     vertex_lights: u32,
@@ -328,6 +331,7 @@ fn grid(gpu: &Gpu, args: &Args, statues: &Statues, map: &Arc<EnvironmentMap>) ->
         let mut options = BakeOptions::default();
         options.unwrap.max_atlas_size = size;
         options.solve.supersample = !args.no_supersample;
+        options.solve.contact = !args.no_contact_trace;
         options.solve.shadow_map_size = args.shadow_map_size;
         options.solve.bounce.patches = args.patches;
         options.solve.bounce.shooters_per_batch = args.shooters_per_batch;

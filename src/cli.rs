@@ -97,6 +97,11 @@ pub struct Args {
     #[arg(long)]
     pub no_supersample: bool,
 
+    /// Keep the GPU passes' light where another surface comes close to a texel (by default it is traced along rays
+    /// on the CPU there: contacts, and the wedge between a ring and the floor under it)
+    #[arg(long)]
+    pub no_contact_trace: bool,
+
     /// Stop bouncing light when the unshot power, each patch's weighted by how much of its hemisphere the scene
     /// covers, falls below this fraction of the power put in, weighted the same way; the rest is added as an ambient
     /// term and reported
@@ -284,6 +289,7 @@ impl Args {
                 solve: SolveOptions {
                     shadow_map_size: self.shadow_map_size,
                     supersample: !self.no_supersample,
+                    contact: !self.no_contact_trace,
                     bounce: BounceOptions {
                         tolerance: self.tolerance,
                         max_shots: self.max_shots,

@@ -188,6 +188,12 @@ pub fn bake_scene(
                 b.unshot_fraction * 100.0
             ));
         }
+        if let Some(c) = solution.contact.as_ref().filter(|c| c.gathered > 0) {
+            parts.push(format!(
+                "{} texels in contact gathered along rays ({} with traced direct light) in {:.1} s",
+                c.gathered, c.traced, c.seconds
+            ));
+        }
         let summary = if parts.is_empty() { "nothing to solve".to_string() } else { parts.join("; ") };
         Ok((solution, summary))
     })?;
@@ -432,6 +438,14 @@ fn scene_report(
                     texels: baked.solution.supersampled,
                     what: "texels a sharp edge of direct light crosses: the mean of sub-samples over the part of \
                            their footprint the centre reaches along the surface"
+                        .into(),
+                },
+                report::Fixup {
+                    stage: "contact".into(),
+                    texels: baked.solution.contact.as_ref().map_or(0, |c| c.gathered),
+                    what: "texels another surface comes close to (a ball's underside over the floor, the floor under \
+                           a ring): their bounced light gathered along 256 rays from the texels the rays meet, and \
+                           their direct light traced too where the surface is within two texels"
                         .into(),
                 },
                 report::Fixup {

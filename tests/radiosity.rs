@@ -403,6 +403,16 @@ fn ball_resting_on_a_glowing_floor_sees_it_with_its_underside() {
     }
 }
 
+/// A ring (major and minor radius, `segments` around) of `colour` lying on
+/// a white floor `floor` metres square.
+fn ring_on_floor(floor: f32, major: f32, minor: f32, segments: u32, colour: [f32; 4]) -> SceneBuilder {
+    let mut builder = SceneBuilder::new();
+    builder.object("floor", &MeshData::plane(floor, floor, 4), [0.8, 0.8, 0.8, 1.0], [0.0; 3], Placement::default());
+    let ring = MeshData::torus(major, minor, segments, 24);
+    builder.object("ring", &ring, colour, [0.0; 3], Placement::at(Vec3::new(0.0, minor, 0.0)));
+    builder
+}
+
 #[test]
 fn torus_resting_on_a_sunlit_floor_sees_the_shadow_beneath_it_with_its_underside() {
     // A black ring lying on a white floor, the sun overhead: the floor under
@@ -413,28 +423,63 @@ fn torus_resting_on_a_sunlit_floor_sees_the_shadow_beneath_it_with_its_underside
     // at 0.88 and 0.90.
     let gpu = common::gpu();
     let (major, minor) = (0.4f32, 0.05f32);
-    let mut builder = SceneBuilder::new();
-    builder.object("floor", &MeshData::plane(2.0, 2.0, 4), [0.8, 0.8, 0.8, 1.0], [0.0; 3], Placement::default());
-    builder.object(
-        "ring",
-        &MeshData::torus(major, minor, 64, 24),
-        [0.0, 0.0, 0.0, 1.0],
-        [0.0; 3],
-        Placement::at(Vec3::new(0.0, minor, 0.0)),
-    );
+    let builder = ring_on_floor(2.0, major, minor, 64, [0.0, 0.0, 0.0, 1.0]);
     let sun = EnvironmentMap::from_fn(512, 256, |d| if d[1] > 0.995 { [1000.0; 3] } else { [0.0; 3] });
     let lights = common::lights(&sun, LightMode::Budget { count: 64 });
     let baked = common::bake(&gpu, &builder, &lights, &common::options(128));
     let lower: Vec<usize> = texels_below(&baked, 1, minor).collect();
     let ratios = bands_against_reference(&baked, &lower, minor, Some(&sun));
     eprintln!("ring underside, bake / reference by band from the contact up: {ratios:.3?}");
-    // The contact's band keeps some excess: the floor's own shadow there is
-    // a few texels wide. Shot to the end it is 1.36; stopped with 13 % of the
-    // light that could land on the ring unshot (the old stop rule), it read
-    // 1.22 while the bands above read 0.95 and 0.98.
-    assert!(ratios[0] < 1.45, "contact band: {}", ratios[0]);
-    for (k, ratio) in ratios.iter().enumerate().skip(1) {
+    // From the bounce pass alone the contact's band kept an excess (1.36):
+    // the floor's own shadow there is a few texels wide. Gathered along rays
+    // from the texels they meet (the contact fix-up), it is 1.03.
+    for (k, ratio) in ratios.iter().enumerate() {
         assert!((ratio - 1.0).abs() < 0.1, "band {k}: {ratio}");
+    }
+}
+
+#[test]
+fn the_floor_under_a_ring_and_the_ring_over_it_get_the_light_that_slips_between_them() {
+    // A light ring lying on a white floor under a low sun and a sky: the
+    // sun shines in under the tube's outer side, and light bounces back and
+    // forth in the wedge between tube and floor, a gap narrower than a
+    // shooter patch or a depth-map texel. The floor under the tube and the
+    // tube's lowest part, against the CPU path tracer. From the GPU passes
+    // alone they got 0.84 and 0.89 of its light, with an RMSE of 23 and 16 %
+    // of their mean; traced along rays (the contact fix-up), 0.981 and 0.978
+    // with 6 % (the path tracer's own noise is about 3 % per texel here).
+    let gpu = common::gpu();
+    let (major, minor) = (0.6f32, 0.2f32);
+    let builder = ring_on_floor(4.0, major, minor, 48, [0.8, 0.7, 0.4, 1.0]);
+    let sun = [0.9f32, 0.35, 0.25];
+    let sun_and_sky = EnvironmentMap::sun_and_sky([0.4, 0.5, 0.7], sun, 2e3, 1f32.to_radians());
+    let lights = common::lights(&sun_and_sky, LightMode::Budget { count: 256 });
+    let baked = common::bake(&gpu, &builder, &lights, &common::options(256));
+    let under_tube = |t: &bake::texelize::Texel| {
+        let r = t.position[0].hypot(t.position[2]);
+        (r - major).abs() < 0.75 * minor
+    };
+    let floor: Vec<usize> = texels_below(&baked, 0, 1.0).filter(|&i| under_tube(&baked.texels.texels[i])).collect();
+    let ring: Vec<usize> = texels_below(&baked, 1, 0.3 * minor).collect();
+    let options = bake::reference::ReferenceOptions { samples: 1024, ..Default::default() };
+    let reference = bake::reference::Reference::new(&baked.scene, Some(&sun_and_sky), &options);
+    for (what, texels) in [("floor under the tube", &floor), ("tube's lowest part", &ring)] {
+        let estimates = reference.estimate(&common::reference_points(&baked, texels));
+        let (mut bake, mut expected, mut squares) = (0.0f64, 0.0f64, 0.0f64);
+        for (&i, e) in texels.iter().zip(&estimates) {
+            let b: f64 = baked.solution.lightmap[i].iter().map(|&v| v as f64).sum();
+            let r: f64 = e.lightmap.iter().sum();
+            (bake, expected, squares) = (bake + b, expected + r, squares + (b - r).powi(2));
+        }
+        let n = texels.len() as f64;
+        let (ratio, rmse) = (bake / expected, (squares / n).sqrt() / (expected / n));
+        eprintln!(
+            "{what}: {} texels, bake / reference {ratio:.3}, RMSE {:.1} % of the mean",
+            texels.len(),
+            rmse * 100.0
+        );
+        assert!((ratio - 1.0).abs() < 0.05, "{what}: bake / reference {ratio}");
+        assert!(rmse < 0.1, "{what}: RMSE {rmse}");
     }
 }
 
@@ -446,8 +491,10 @@ fn a_small_ball_on_a_large_ground_gets_the_light_the_ground_bounces_under_it() {
     // a hemicube sees from one point of a patch: shot from cells five times
     // the ball's width, the lower half's bands got 0.80, 0.72 and 0.82 of the
     // path tracer's light. Split where a smaller object stands over them,
-    // the cells give 0.86, 0.93 and 0.95 (the contact band keeps the dark
-    // contact found under balls before).
+    // the cells gave 0.88, 0.93 and 0.95 (the contact band kept the dark
+    // contact found under balls before); the contact fix-up, which traces
+    // the light of the texels near the ground along rays, gives 1.03, 0.97
+    // and 0.96.
     let gpu = common::gpu();
     let radius = 0.25f32;
     let mut builder = SceneBuilder::new();
@@ -465,7 +512,7 @@ fn a_small_ball_on_a_large_ground_gets_the_light_the_ground_bounces_under_it() {
         lower.len()
     );
     for (k, ratio) in ratios.iter().enumerate() {
-        assert!((0.83..1.1).contains(ratio), "band {k}: {ratio}");
+        assert!((0.93..1.07).contains(ratio), "band {k}: {ratio}");
     }
 }
 

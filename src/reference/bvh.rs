@@ -194,6 +194,19 @@ impl Bvh {
         self.traverse(origin, direction, t_max, skip, false, solid)
     }
 
+    /// Some hit on the ray within 0 < t < `t_max` (except `skip`) that
+    /// `solid` accepts, the first the traversal finds: not always the closest.
+    pub(crate) fn any_hit(
+        &self,
+        origin: DVec3,
+        direction: DVec3,
+        t_max: f64,
+        skip: Option<u32>,
+        solid: &impl Fn(&Triangle, f64, f64) -> bool,
+    ) -> Option<Hit> {
+        self.traverse(origin, direction, t_max, skip, true, solid)
+    }
+
     /// Whether anything `solid` accepts lies on the ray within 0 < t < `t_max`
     /// (except `skip`).
     pub(crate) fn occluded(
@@ -204,7 +217,7 @@ impl Bvh {
         skip: Option<u32>,
         solid: &impl Fn(&Triangle, f64, f64) -> bool,
     ) -> bool {
-        self.traverse(origin, direction, t_max, skip, true, solid).is_some()
+        self.any_hit(origin, direction, t_max, skip, solid).is_some()
     }
 
     /// The hit of triangle `i` if it counts: not `skip`, within `t_max`, and `solid`.

@@ -103,7 +103,8 @@ use rayon::prelude::*;
 use crate::environment::EnvironmentMap;
 use crate::scene::{AlphaMode, LinearImage, Scene, ScenePrimitive, TextureRef};
 use bvh::{Bvh, NO_TEXCOORDS, Triangle};
-use sampling::{EnvSampler, Rng};
+use sampling::EnvSampler;
+pub(crate) use sampling::{Rng, basis, cosine_hemisphere};
 use texture::Texture;
 
 /// Samples per independent random stream (see the module's "Determinism").
@@ -569,6 +570,21 @@ impl Occluders {
     /// Whether any triangle crosses the segment from `a` to `b` (ends excluded).
     pub(crate) fn blocks(&self, a: DVec3, b: DVec3) -> bool {
         self.0.occluded(a, b - a, 1.0, None, &bvh::every_hit)
+    }
+
+    /// The first triangle the ray `origin + t·direction` (0 < t < `t_max`)
+    /// meets: its distance t, its primitive's index and its face normal.
+    pub(crate) fn first_hit(&self, origin: DVec3, direction: DVec3, t_max: f64) -> Option<(f64, u32, DVec3)> {
+        let hit = self.0.closest(origin, direction, t_max, None, &bvh::every_hit)?;
+        let triangle = &self.0.triangles[hit.triangle as usize];
+        Some((hit.t, triangle.primitive, triangle.face))
+    }
+
+    /// The primitive of some triangle on the ray from `origin` towards
+    /// `direction` (any that blocks it, not always the first).
+    pub(crate) fn any_blocker(&self, origin: DVec3, direction: DVec3) -> Option<u32> {
+        let hit = self.0.any_hit(origin, direction, f64::INFINITY, None, &bvh::every_hit)?;
+        Some(self.0.triangles[hit.triangle as usize].primitive)
     }
 
     /// Whether a triangle that `counts` accepts (given its primitive's index

@@ -9,6 +9,7 @@
 
 pub mod bounce;
 mod casters;
+mod contact;
 pub mod direct;
 mod hemicube_cull;
 mod overlaps;
@@ -24,6 +25,7 @@ use crate::gpu::Gpu;
 use crate::scene::Scene;
 use crate::texelize::{Texel, TexelSet};
 pub use bounce::{BounceOptions, BounceStats, TracePoint};
+pub use contact::ContactStats;
 use overlaps::Overlaps;
 
 /// Options of the solve, with their defaults.
@@ -37,12 +39,21 @@ pub struct SolveOptions {
     /// Gather texels on a sharp change of direct light at sub-samples of
     /// their footprint (`supersample`).
     pub supersample: bool,
+    /// Trace the light of texels close to another surface on the CPU
+    /// (`contact`).
+    pub contact: bool,
     pub bounce: BounceOptions,
 }
 
 impl Default for SolveOptions {
     fn default() -> Self {
-        SolveOptions { shadow_map_size: None, batch_size: 64, supersample: true, bounce: BounceOptions::default() }
+        SolveOptions {
+            shadow_map_size: None,
+            batch_size: 64,
+            supersample: true,
+            contact: true,
+            bounce: BounceOptions::default(),
+        }
     }
 }
 
@@ -53,6 +64,8 @@ pub struct Solution {
     pub lightmap: Vec<[f32; 3]>,
     pub direct: Option<direct::DirectStats>,
     pub bounce: Option<BounceStats>,
+    /// The contact fix-up (`contact`), when it ran.
+    pub contact: Option<ContactStats>,
     /// Texels whose direct light is the mean over sub-samples of their
     /// footprint (`supersample`).
     pub supersampled: usize,
@@ -122,6 +135,9 @@ pub fn run(
         skip(&mut skipped, "emission", "no surface is emissive");
     }
     let mut bounce_stats = None;
+    // The direct light alone, for the contact fix-up.
+    let direct_only = options.contact.then(|| lightmap.clone());
+    let mut cell = None;
     // Surfaces on or just over one another (`overlaps`).
     let texel_size = 1.0 / texels_per_unit.max(1e-30);
     let overlaps = overlaps::find(scene, texels, texel_size);
@@ -151,6 +167,7 @@ pub fn run(
             progress,
         )?;
         bounce_stats = Some(stats);
+        cell = Some(patches.cell as f64 * texel_size as f64);
     }
     // What lies hidden under an opaque surface gets no light, whatever the
     // depth maps made of the surface over it.
@@ -161,8 +178,26 @@ pub fn run(
             }
         }
     }
+    let mut contact_stats = None;
+    // (First, so the contact fix-up gathers none of their light.)
+    let hidden = overlaps.as_ref().map(|o| o.hidden.as_slice());
+    if let Some(direct) = &direct_only {
+        // Without a bounce pass the reach is still a shooter patch's cell.
+        let cell =
+            cell.unwrap_or_else(|| patches::cell_size(texels, options.bounce.patches) as f64 * texel_size as f64);
+        let stats = contact::fix(scene, texels, hidden, lights, direct, &mut lightmap, cell, texel_size as f64);
+        contact_stats = Some(stats);
+    }
     let overlapped = overlaps.as_ref().map_or(0, Overlaps::count);
-    Ok(Solution { lightmap, direct: direct_stats, bounce: bounce_stats, supersampled, overlapped, skipped })
+    Ok(Solution {
+        lightmap,
+        direct: direct_stats,
+        bounce: bounce_stats,
+        contact: contact_stats,
+        supersampled,
+        overlapped,
+        skipped,
+    })
 }
 
 /// The direct pass with the supersample fix-up when it is asked for, and how

@@ -97,7 +97,7 @@ pub fn build(texels: &TexelSet, target: u32, texel_size: f32, sight: Option<Sigh
     if n == 0 {
         return Patches::default();
     }
-    let cell = ((n as f64 / target.max(1) as f64).sqrt().round() as u32).max(1);
+    let cell = cell_size(texels, target);
     // How many times each texel's cell was split.
     let mut splits = vec![0u8; n];
     let key = |i: usize, splits: &[u8]| {
@@ -169,6 +169,11 @@ fn object_sizes(texels: &TexelSet) -> Vec<f32> {
         *b = (b.0.min(t.position()), b.1.max(t.position()));
     }
     bounds.iter().map(|(lo, hi)| (*hi - *lo).length()).collect()
+}
+
+/// Side of the atlas cell, texels, that groups `texels` into about `target` patches.
+pub fn cell_size(texels: &TexelSet, target: u32) -> u32 {
+    ((texels.texels.len() as f64 / target.max(1) as f64).sqrt().round() as u32).max(1)
 }
 
 /// A texel's patch: chart, cell row and column, normal axis, the part of a

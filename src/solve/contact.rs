@@ -1,0 +1,435 @@
+//! Contact fix-up: where another surface comes close to a texel (a ball's
+//! underside over the floor, the wedge between a ring's tube and the floor
+//! under it, a statue's foot), its light is traced along rays on the CPU
+//! instead of read from the GPU passes, which see the scene from too few
+//! points there:
+//!
+//! - the bounce pass takes each shooter patch's visibility from one
+//!   hemicube and its light from 4 × 4 sub-cells, both coarser than the gap
+//!   between two surfaces near their contact (the corner fixture's ring:
+//!   its underside's lowest 5 cm got 0.77 of the path tracer's light, the
+//!   floor under the tube 0.83 of its bounced light);
+//! - the direct pass reads depth maps whose texels are wider than that gap
+//!   (the floor under the tube: 0.87 of its direct light, 0.5 where the sun
+//!   shines in under the tube).
+//!
+//! A texel is in contact when one of `PROBE_SIDE`² cosine rays meets a
+//! surface within `REACH_CELLS` shooter patches. Its bounced light becomes
+//! the mean outgoing radiance (albedo · L_lm + emission) of the texels that
+//! `GATHER_SIDE`² stratified cosine rays meet, which is L_lm = E/π by
+//! definition; what each ray meets is found once, and the gather is
+//! repeated (Jacobi) until light between texels in contact with each other
+//! stops changing. Where a surface lies within `DIRECT_REACH_TEXELS` its
+//! direct light is traced too (`DIRECT_SAMPLES` shadow rays spread over the
+//! lights by what each brings). Texels a probe ray meets few surfaces from
+//! are blended with the GPU passes' value (`FULL_WEIGHT_HITS`), so the
+//! fix-up's edge leaves no step.
+//!
+//! Texels whose rays meet an alpha-masked or blended surface keep the GPU
+//! passes' value: the CPU scene here is geometry only.
+
+use std::collections::HashMap;
+
+use glam::{DVec3, IVec3, Vec3};
+use rayon::prelude::*;
+
+use crate::environment::{Light, LightSet};
+use crate::reference::{Occluders, Rng, basis, cosine_hemisphere};
+use crate::scene::{AlphaMode, Scene};
+use crate::texelize::{Texel, TexelSet};
+
+/// Probe rays per texel, per side of their stratified grid (16 rays).
+const PROBE_SIDE: u32 = 4;
+/// A texel is in contact with a surface a probe ray meets within this
+/// many shooter-patch cells (world size of the patch grid's cell): the
+/// distance below which one hemicube and 16 sub-cells per patch misjudge
+/// the light between two surfaces. Measured on the corner fixture (3,000
+/// probes, courtyard): half a cell gave the RMSE of a whole one or two at
+/// half and a quarter of the cost.
+const REACH_CELLS: f64 = 0.5;
+/// Surfaces within this many lightmap texels also get their direct light
+/// traced: the depth maps' texels track the lightmap's.
+const DIRECT_REACH_TEXELS: f64 = 2.0;
+/// Gather rays per texel, per side of their stratified grid (256 rays): 32
+/// per side changed the corner fixture's RMSE by 0.02 points at 4× the cost.
+const GATHER_SIDE: u32 = 16;
+/// What the gather rays meet is kept for every round, 4 bytes a ray: past
+/// this many bytes the rays per texel are fewer (down to `MIN_GATHER_SIDE`²).
+const HIT_BYTES: usize = 512 << 20;
+const MIN_GATHER_SIDE: u32 = 8;
+/// Shadow rays per texel whose direct light is traced.
+const DIRECT_SAMPLES: u32 = 1024;
+/// Probe rays that must meet a surface within reach for the texel to take
+/// the traced light in full; with fewer it is blended in proportion.
+const FULL_WEIGHT_HITS: f32 = 4.0;
+/// The gather is repeated until no texel's light changes by more than this
+/// share of the brightest texel's, or `MAX_ROUNDS` times.
+const SETTLED: f64 = 1e-4;
+const MAX_ROUNDS: usize = 64;
+/// Only surfaces turned at least this far (cosine) from the one a gather
+/// ray meets stand between it and the texel it takes (a wall on the floor;
+/// not the facets of a curved surface, which a chord dips under).
+const STANDING_COS: f64 = 0.5;
+/// Shadow rays leave a texel's face at least this steeply (sine).
+const SKIM: f64 = 1e-3;
+/// Ray origins sit this far off the surface, texels (`Tracer::origin`),
+/// and at least `MIN_LIFT_TEXELS`: clear of the f32 rounding of a texel's
+/// position.
+const LIFT_TEXELS: f64 = 0.05;
+const MIN_LIFT_TEXELS: f64 = 1e-3;
+
+/// What the fix-up did.
+#[derive(Clone, Debug, Default)]
+pub struct ContactStats {
+    /// Texels whose bounced light was gathered along rays.
+    pub gathered: usize,
+    /// Of them, those whose direct light was traced too.
+    pub traced: usize,
+    /// Rounds of the gather until it settled.
+    pub rounds: usize,
+    pub seconds: f64,
+}
+
+/// Replaces the light of texels in contact with another surface by light
+/// traced along rays (module docs). `hidden` marks texels under an opaque
+/// surface (no light; rays meeting their place take the surface's). `direct` is each texel's direct light
+/// (L_lm), `lightmap` the solution so far (direct and bounced), updated in
+/// place. `cell` is the world width of a shooter patch's cell, `texel_size`
+/// that of a lightmap texel.
+#[allow(clippy::too_many_arguments)]
+pub fn fix(
+    scene: &Scene,
+    texels: &TexelSet,
+    hidden: Option<&[bool]>,
+    lights: Option<&LightSet>,
+    direct: &[[f32; 3]],
+    lightmap: &mut [[f32; 3]],
+    cell: f64,
+    texel_size: f64,
+) -> ContactStats {
+    let start = std::time::Instant::now();
+    let tracer = Tracer::new(scene, texels, hidden, texel_size);
+    let reach = REACH_CELLS * cell;
+    let probes: Vec<Option<Probe>> = (0..texels.texels.len())
+        .into_par_iter()
+        .map(|i| {
+            let t = &texels.texels[i];
+            if t.area > 0.0 { tracer.probe(t, i, reach) } else { None }
+        })
+        .collect();
+    let contacts: Vec<(usize, Probe)> = probes.into_iter().enumerate().filter_map(|(i, p)| p.map(|p| (i, p))).collect();
+    // Each texel's direct light (traced, or the direct pass's) and what its
+    // gather rays meet; none where a ray met a surface light passes.
+    let direct_reach = DIRECT_REACH_TEXELS * texel_size;
+    let side = gather_side(contacts.len());
+    let contacts: Vec<Contact> = contacts
+        .par_iter()
+        .filter_map(|&(i, probe)| {
+            let t = &texels.texels[i];
+            let traced = lights.filter(|_| probe.nearest < direct_reach);
+            let own_direct = match traced {
+                Some(lights) => tracer.direct(t, i, &lights.lights)?,
+                None => direct[i],
+            };
+            Some(Contact {
+                texel: i,
+                weight: (probe.hits as f32 / FULL_WEIGHT_HITS).min(1.0),
+                direct: own_direct,
+                direct_traced: traced.is_some(),
+                hits: tracer.gather_hits(t, i, side)?,
+            })
+        })
+        .collect();
+    let mut stats = ContactStats {
+        gathered: contacts.len(),
+        traced: contacts.iter().filter(|c| c.direct_traced).count(),
+        ..Default::default()
+    };
+    // The GPU passes' value, blended with the traced one by weight.
+    let before: Vec<[f32; 3]> = contacts.iter().map(|c| lightmap[c.texel]).collect();
+    let peak = lightmap.iter().map(|v| v.iter().cloned().fold(0.0f32, f32::max)).fold(0.0f32, f32::max) as f64;
+    let rays = (side * side) as f64;
+    for round in 1..=MAX_ROUNDS {
+        let gathered: Vec<[f32; 3]> = contacts
+            .par_iter()
+            .map(|contact| {
+                let sum = contact.hits.iter().fold(DVec3::ZERO, |sum, &j| {
+                    let t = &texels.texels[j as usize];
+                    let l = lightmap[j as usize];
+                    sum + DVec3::from_array([0, 1, 2].map(|c| (t.albedo[c] * l[c] + t.emission[c]) as f64))
+                });
+                let mean = sum / rays;
+                [mean.x as f32, mean.y as f32, mean.z as f32]
+            })
+            .collect();
+        let mut change = 0.0f64;
+        for ((contact, gathered), before) in contacts.iter().zip(gathered).zip(&before) {
+            let w = contact.weight;
+            let value = [0, 1, 2].map(|c| w * (contact.direct[c] + gathered[c]) + (1.0 - w) * before[c]);
+            let old = &mut lightmap[contact.texel];
+            for c in 0..3 {
+                change = change.max((value[c] - old[c]).abs() as f64);
+            }
+            *old = value;
+        }
+        stats.rounds = round;
+        if change <= SETTLED * peak {
+            break;
+        }
+    }
+    stats.seconds = start.elapsed().as_secs_f64();
+    stats
+}
+
+/// A texel in contact, as traced.
+struct Contact {
+    texel: usize,
+    /// Share of its value taken from the traced light (`FULL_WEIGHT_HITS`).
+    weight: f32,
+    /// Its direct light (L_lm).
+    direct: [f32; 3],
+    /// Whether `direct` was traced here (else the direct pass's).
+    direct_traced: bool,
+    /// The texels its gather rays meet.
+    hits: Vec<u32>,
+}
+
+/// What a texel's probe rays found within reach: how many met a surface,
+/// and the nearest one's distance.
+#[derive(Clone, Copy, Debug)]
+struct Probe {
+    hits: u32,
+    nearest: f64,
+}
+
+/// The scene's geometry for rays, and its texels by place.
+struct Tracer<'a> {
+    texels: &'a TexelSet,
+    occluders: Occluders,
+    grid: TexelGrid,
+    /// Per primitive: whether light passes parts of it (alpha MASK or BLEND).
+    passes_light: Vec<bool>,
+    lift: f64,
+    min_lift: f64,
+}
+
+impl<'a> Tracer<'a> {
+    fn new(scene: &Scene, texels: &'a TexelSet, hidden: Option<&[bool]>, texel_size: f64) -> Tracer<'a> {
+        Tracer {
+            texels,
+            occluders: Occluders::new(scene),
+            grid: TexelGrid::new(texels, hidden, 1.5 * texel_size),
+            passes_light: scene.primitives.iter().map(|p| scene.material(p).alpha != AlphaMode::Opaque).collect(),
+            lift: LIFT_TEXELS * texel_size,
+            min_lift: MIN_LIFT_TEXELS * texel_size,
+        }
+    }
+
+    /// Where the texel's rays start: `LIFT_TEXELS` off its surface, or half
+    /// way to a surface nearer in front of it (a ring's underside 1.7 mm over
+    /// the floor: a fixed twentieth of a texel started its rays under the
+    /// floor, and a fixed thousandth let a statue's creases block rays
+    /// leaving them).
+    fn origin(&self, t: &Texel) -> DVec3 {
+        let f = face_of(t);
+        let start = t.position().as_dvec3() + f * self.min_lift;
+        let room = self.occluders.first_hit(start, f, self.lift).map_or(self.lift, |h| 0.5 * h.0);
+        start + f * room
+    }
+
+    /// `None` when no probe ray meets a surface within `reach`, or one meets
+    /// a surface light passes.
+    fn probe(&self, t: &Texel, i: usize, reach: f64) -> Option<Probe> {
+        let o = self.origin(t);
+        let mut probe = Probe { hits: 0, nearest: f64::INFINITY };
+        for d in cosine_directions(t, PROBE_SIDE, &[i as u64, 1]) {
+            if let Some((distance, primitive, _)) = self.occluders.first_hit(o, d, reach) {
+                if self.passes_light[primitive as usize] {
+                    return None;
+                }
+                probe.hits += 1;
+                probe.nearest = probe.nearest.min(distance);
+            }
+        }
+        (probe.hits > 0).then_some(probe)
+    }
+
+    /// The texels `side`² cosine rays meet from the front (rays that leave
+    /// the scene, or meet a surface's back, bring no bounced light).
+    fn gather_hits(&self, t: &Texel, i: usize, side: u32) -> Option<Vec<u32>> {
+        let o = self.origin(t);
+        let mut hits = Vec::with_capacity((side * side) as usize);
+        for d in cosine_directions(t, side, &[i as u64, 2]) {
+            let Some((distance, primitive, face)) = self.occluders.first_hit(o, d, f64::INFINITY) else {
+                continue;
+            };
+            if self.passes_light[primitive as usize] {
+                return None;
+            }
+            if let Some(j) = self.texel_at(o + d * distance, primitive, face, d) {
+                hits.push(j);
+            }
+        }
+        Some(hits)
+    }
+
+    /// The texel whose light a ray along `d` takes where it meets the
+    /// triangle of `primitive` and face normal `face` at `p`: the nearest
+    /// (`TexelGrid::candidates`) that `p` reaches along the surface. (A ray
+    /// meeting a room's floor beside its wall took the light of the lit
+    /// ground outside, a texel nearer than the floor's.) Another
+    /// primitive's texel may stand in: on a floor laid on the ground, a ray
+    /// meets either's triangle, and the ground's texels there are hidden.
+    fn texel_at(&self, p: DVec3, primitive: u32, face: DVec3, d: DVec3) -> Option<u32> {
+        let side = if face.dot(d) < 0.0 { face } else { -face } * self.min_lift;
+        let candidates = self.grid.candidates(self.texels, p, primitive, face, d);
+        candidates.into_iter().map(|(_, i)| i).find(|&i| {
+            let t = self.texels.texels[i as usize].position().as_dvec3();
+            !self.occluders.blocks_where(p + side, t + side, |_, other| other.dot(face).abs() < STANDING_COS)
+        })
+    }
+
+    /// Direct light L_lm = Σ_k L_k Ω_k max(0, n·ω_k) V_k / π, as the direct
+    /// pass defines it, with V traced: `DIRECT_SAMPLES` rays, spread over
+    /// the lights in front of the texel by L_k Ω_k n·ω_k (systematic
+    /// sampling of their running sum), each to a point of its light's cone.
+    /// A ray below the texel's own face is not blocked by it, as in the
+    /// direct pass (the shading normal's cosine weighs that part of the
+    /// light): it is turned to skim the face, so that other surfaces still
+    /// block it. (Blocked by the face, a faceted ball's underside over the
+    /// ground came out 7 % dark.)
+    fn direct(&self, t: &Texel, i: usize, lights: &[Light]) -> Option<[f32; 3]> {
+        let n = t.normal().as_dvec3();
+        let f = face_of(t);
+        let o = self.origin(t);
+        let contribution = |l: &Light| {
+            let cos = n.dot(Vec3::from(l.direction).as_dvec3());
+            DVec3::from_array(l.radiance.map(|c| c as f64)) * (l.solid_angle as f64 * cos.max(0.0))
+        };
+        let total: f64 = lights.iter().map(|l| contribution(l).element_sum()).sum();
+        if total.is_nan() || total <= 0.0 {
+            return Some([0.0; 3]);
+        }
+        let mut rng = Rng::new(&[i as u64, 3]);
+        let step = total / DIRECT_SAMPLES as f64;
+        let mut next = rng.next_f64() * step;
+        let mut running = 0.0;
+        let mut light = DVec3::ZERO;
+        for l in lights {
+            let c = contribution(l);
+            let weight = c.element_sum();
+            running += weight;
+            // This light's share of the samples, each carrying `step`.
+            let mut samples = 0u32;
+            let mut open = 0u32;
+            while next < running {
+                next += step;
+                samples += 1;
+                let d = skim_above(point_in_cone(l, &mut rng), f);
+                match self.occluders.any_blocker(o, d) {
+                    Some(primitive) if self.passes_light[primitive as usize] => return None,
+                    Some(_) => continue,
+                    None => open += 1,
+                }
+            }
+            if samples > 0 {
+                light += c / weight * (step * open as f64);
+            }
+        }
+        let l = light / std::f64::consts::PI;
+        Some([l.x as f32, l.y as f32, l.z as f32])
+    }
+}
+
+/// `d`, turned up to skim the face of normal `f` where it goes below it.
+fn skim_above(d: DVec3, f: DVec3) -> DVec3 {
+    let height = d.dot(f);
+    if height >= SKIM {
+        return d;
+    }
+    (d + f * (SKIM - height)).normalize()
+}
+
+/// Gather rays per side for `contacts` texels: `GATHER_SIDE`, fewer where
+/// their hits would pass `HIT_BYTES`.
+fn gather_side(contacts: usize) -> u32 {
+    let rays = HIT_BYTES / 4 / contacts.max(1);
+    ((rays as f64).sqrt() as u32).clamp(MIN_GATHER_SIDE, GATHER_SIDE)
+}
+
+/// A direction uniformly within light `l`'s cone (the cap of its solid angle).
+fn point_in_cone(l: &Light, rng: &mut Rng) -> DVec3 {
+    let w = Vec3::from(l.direction).as_dvec3();
+    let cos_max = (1.0 - l.solid_angle as f64 / std::f64::consts::TAU).max(-1.0);
+    let cos = 1.0 - rng.next_f64() * (1.0 - cos_max);
+    let sin = (1.0 - cos * cos).max(0.0).sqrt();
+    let phi = std::f64::consts::TAU * rng.next_f64();
+    let (u, v) = basis(w);
+    (w * cos + u * (sin * phi.cos()) + v * (sin * phi.sin())).normalize()
+}
+
+fn face_of(t: &Texel) -> DVec3 {
+    Vec3::from(t.face_normal).as_dvec3()
+}
+
+/// `side`² cosine-distributed directions about the texel's normal, one per
+/// cell of a stratified grid, jittered by a generator keyed by `key`; those
+/// below the texel's face are left out.
+fn cosine_directions(t: &Texel, side: u32, key: &[u64]) -> impl Iterator<Item = DVec3> {
+    let n = t.normal().as_dvec3();
+    let f = face_of(t);
+    let mut rng = Rng::new(key);
+    (0..side * side).filter_map(move |k| {
+        let u1 = ((k / side) as f64 + rng.next_f64()) / side as f64;
+        let u2 = ((k % side) as f64 + rng.next_f64()) / side as f64;
+        let (d, _) = cosine_hemisphere(n, u1, u2);
+        (d.dot(f) > 0.0).then_some(d)
+    })
+}
+
+/// Texels by world position, in cubes `cell` wide (hidden ones left out).
+struct TexelGrid {
+    cell: f64,
+    cubes: HashMap<IVec3, Vec<u32>>,
+}
+
+impl TexelGrid {
+    fn new(texels: &TexelSet, hidden: Option<&[bool]>, cell: f64) -> TexelGrid {
+        let mut cubes: HashMap<IVec3, Vec<u32>> = HashMap::new();
+        for (i, t) in texels.texels.iter().enumerate() {
+            if t.area > 0.0 && !hidden.is_some_and(|h| h[i]) {
+                cubes.entry((t.position().as_dvec3() / cell).floor().as_ivec3()).or_default().push(i as u32);
+            }
+        }
+        TexelGrid { cell, cubes }
+    }
+
+    /// Texels in the 27 cubes around `p` whose face lies the same way as
+    /// `face` (either side) and whose front a ray along `d` meets, with
+    /// their squared distance to `p`, another primitive's than `primitive`
+    /// penalized by half a cube (nearest first).
+    fn candidates(&self, texels: &TexelSet, p: DVec3, primitive: u32, face: DVec3, d: DVec3) -> Vec<(f64, u32)> {
+        let home = (p / self.cell).floor().as_ivec3();
+        let other = (0.5 * self.cell).powi(2);
+        let mut found = Vec::new();
+        for dz in -1..=1 {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let Some(cube) = self.cubes.get(&(home + IVec3::new(dx, dy, dz))) else {
+                        continue;
+                    };
+                    for &i in cube {
+                        let t = &texels.texels[i as usize];
+                        let f = face_of(t);
+                        if f.dot(face).abs() >= 0.5 && f.dot(d) < 0.0 {
+                            let distance = (t.position().as_dvec3() - p).length_squared();
+                            found.push((if t.primitive == primitive { distance } else { distance + other }, i));
+                        }
+                    }
+                }
+            }
+        }
+        found.sort_by(|a, b| a.0.total_cmp(&b.0));
+        found
+    }
+}
