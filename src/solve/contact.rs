@@ -21,7 +21,7 @@
 //! repeated (Jacobi) until light between texels in contact with each other
 //! stops changing. Where a surface lies within `DIRECT_REACH_TEXELS` its
 //! direct light is traced too (`DIRECT_SAMPLES` shadow rays spread over the
-//! lights by what each brings). Texels a probe ray meets few surfaces from
+//! lights by what each brings). Texels where few probe rays meet a surface
 //! are blended with the GPU passes' value (`FULL_WEIGHT_HITS`), so the
 //! fix-up's edge leaves no step.
 //!
@@ -275,7 +275,8 @@ impl<'a> Tracer<'a> {
 
     /// The texel whose light a ray along `d` takes where it meets the
     /// triangle of `primitive` and face normal `face` at `p`: the nearest
-    /// (`TexelGrid::candidates`) that `p` reaches along the surface. (A ray
+    /// (`TexelGrid::candidates`) that `p` reaches along the surface, past
+    /// nothing standing up from it (`STANDING_COS`). (A ray
     /// meeting a room's floor beside its wall took the light of the lit
     /// ground outside, a texel nearer than the floor's.) Another
     /// primitive's texel may stand in: on a floor laid on the ground, a ray
