@@ -128,7 +128,7 @@ pub fn fix(
             let t = &texels.texels[i];
             let traced = lights.filter(|_| probe.nearest < direct_reach);
             let own_direct = match traced {
-                Some(lights) => tracer.direct(t, i, &lights.lights)?,
+                Some(lights) => tracer.direct(t, i, probe.origin, &lights.lights)?,
                 None => direct[i],
             };
             Some(Contact {
@@ -136,7 +136,7 @@ pub fn fix(
                 weight: (probe.hits as f32 / FULL_WEIGHT_HITS).min(1.0),
                 direct: own_direct,
                 direct_traced: traced.is_some(),
-                hits: tracer.gather_hits(t, i, side)?,
+                hits: tracer.gather_hits(t, i, probe.origin, side)?,
             })
         })
         .collect();
@@ -200,6 +200,8 @@ struct Contact {
 struct Probe {
     hits: u32,
     nearest: f64,
+    /// Where the texel's rays start (`Tracer::origin`).
+    origin: DVec3,
 }
 
 /// The scene's geometry for rays, and its texels by place.
@@ -241,7 +243,7 @@ impl<'a> Tracer<'a> {
     /// a surface light passes.
     fn probe(&self, t: &Texel, i: usize, reach: f64) -> Option<Probe> {
         let o = self.origin(t);
-        let mut probe = Probe { hits: 0, nearest: f64::INFINITY };
+        let mut probe = Probe { hits: 0, nearest: f64::INFINITY, origin: o };
         for d in cosine_directions(t, PROBE_SIDE, &[i as u64, 1]) {
             if let Some((distance, primitive, _)) = self.occluders.first_hit(o, d, reach) {
                 if self.passes_light[primitive as usize] {
@@ -256,8 +258,7 @@ impl<'a> Tracer<'a> {
 
     /// The texels `side`² cosine rays meet from the front (rays that leave
     /// the scene, or meet a surface's back, bring no bounced light).
-    fn gather_hits(&self, t: &Texel, i: usize, side: u32) -> Option<Vec<u32>> {
-        let o = self.origin(t);
+    fn gather_hits(&self, t: &Texel, i: usize, o: DVec3, side: u32) -> Option<Vec<u32>> {
         let mut hits = Vec::with_capacity((side * side) as usize);
         for d in cosine_directions(t, side, &[i as u64, 2]) {
             let Some((distance, primitive, face)) = self.occluders.first_hit(o, d, f64::INFINITY) else {
@@ -299,10 +300,9 @@ impl<'a> Tracer<'a> {
     /// light): it is turned to skim the face, so that other surfaces still
     /// block it. (Blocked by the face, a faceted ball's underside over the
     /// ground came out 7 % dark.)
-    fn direct(&self, t: &Texel, i: usize, lights: &[Light]) -> Option<[f32; 3]> {
+    fn direct(&self, t: &Texel, i: usize, o: DVec3, lights: &[Light]) -> Option<[f32; 3]> {
         let n = t.normal().as_dvec3();
         let f = face_of(t);
-        let o = self.origin(t);
         let contribution = |l: &Light| {
             let cos = n.dot(Vec3::from(l.direction).as_dvec3());
             DVec3::from_array(l.radiance.map(|c| c as f64)) * (l.solid_angle as f64 * cos.max(0.0))

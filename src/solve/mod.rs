@@ -137,7 +137,6 @@ pub fn run(
     let mut bounce_stats = None;
     // The direct light alone, for the contact fix-up.
     let direct_only = options.contact.then(|| lightmap.clone());
-    let mut cell = None;
     // Surfaces on or just over one another (`overlaps`).
     let texel_size = 1.0 / texels_per_unit.max(1e-30);
     let overlaps = overlaps::find(scene, texels, texel_size);
@@ -167,10 +166,10 @@ pub fn run(
             progress,
         )?;
         bounce_stats = Some(stats);
-        cell = Some(patches.cell as f64 * texel_size as f64);
     }
     // What lies hidden under an opaque surface gets no light, whatever the
-    // depth maps made of the surface over it.
+    // depth maps made of the surface over it (first, so the contact fix-up
+    // gathers none of their light).
     if let Some(overlaps) = &overlaps {
         for (value, &hidden) in lightmap.iter_mut().zip(&overlaps.hidden) {
             if hidden {
@@ -179,12 +178,11 @@ pub fn run(
         }
     }
     let mut contact_stats = None;
-    // (First, so the contact fix-up gathers none of their light.)
     let hidden = overlaps.as_ref().map(|o| o.hidden.as_slice());
     if let Some(direct) = &direct_only {
-        // Without a bounce pass the reach is still a shooter patch's cell.
-        let cell =
-            cell.unwrap_or_else(|| patches::cell_size(texels, options.bounce.patches) as f64 * texel_size as f64);
+        // The reach is in shooter patches' cells (`patches::build`'s), with
+        // or without a bounce pass.
+        let cell = patches::cell_size(texels, options.bounce.patches) as f64 * texel_size as f64;
         let stats = contact::fix(scene, texels, hidden, lights, direct, &mut lightmap, cell, texel_size as f64);
         contact_stats = Some(stats);
     }
