@@ -557,13 +557,16 @@ impl Stats {
 
 /// The scene's triangles for visibility tests outside the reference: the
 /// solve's supersample fix-up asks whether a segment along a surface
-/// crosses other geometry. Geometry only: alpha-MASK cut-outs block like
-/// solid surface (unlike in [`Reference`]), so the fix-up drops a sub-sample
-/// behind a hole as it does behind a wall, which costs only some smoothing.
-pub(crate) struct Occluders(Bvh);
+/// crosses other geometry, the shooter patches what their origin sees, the
+/// contact fix-up what a ray meets. Built once per bake and shared by the
+/// three. Geometry only: alpha-MASK cut-outs block like solid surface
+/// (unlike in [`Reference`]), so the fix-up drops a sub-sample behind a hole
+/// as it does behind a wall, which costs only some smoothing.
+pub struct Occluders(Bvh);
 
 impl Occluders {
-    pub(crate) fn new(scene: &Scene) -> Occluders {
+    /// A BVH over every triangle of `scene`.
+    pub fn new(scene: &Scene) -> Occluders {
         Occluders(Bvh::new(scene_triangles(scene).into_iter().map(|(_, _, t)| t).collect()))
     }
 

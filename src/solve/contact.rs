@@ -99,6 +99,7 @@ pub struct ContactStats {
 #[allow(clippy::too_many_arguments)]
 pub fn fix(
     scene: &Scene,
+    occluders: &Occluders,
     texels: &TexelSet,
     hidden: Option<&[bool]>,
     lights: Option<&LightSet>,
@@ -108,7 +109,7 @@ pub fn fix(
     texel_size: f64,
 ) -> ContactStats {
     let start = std::time::Instant::now();
-    let tracer = Tracer::new(scene, texels, hidden, texel_size);
+    let tracer = Tracer::new(scene, occluders, texels, hidden, texel_size);
     let reach = REACH_CELLS * cell;
     let probes: Vec<Option<Probe>> = (0..texels.texels.len())
         .into_par_iter()
@@ -207,7 +208,7 @@ struct Probe {
 /// The scene's geometry for rays, and its texels by place.
 struct Tracer<'a> {
     texels: &'a TexelSet,
-    occluders: Occluders,
+    occluders: &'a Occluders,
     grid: TexelGrid,
     /// Per primitive: whether light passes parts of it (alpha MASK or BLEND).
     passes_light: Vec<bool>,
@@ -216,10 +217,16 @@ struct Tracer<'a> {
 }
 
 impl<'a> Tracer<'a> {
-    fn new(scene: &Scene, texels: &'a TexelSet, hidden: Option<&[bool]>, texel_size: f64) -> Tracer<'a> {
+    fn new(
+        scene: &Scene,
+        occluders: &'a Occluders,
+        texels: &'a TexelSet,
+        hidden: Option<&[bool]>,
+        texel_size: f64,
+    ) -> Tracer<'a> {
         Tracer {
             texels,
-            occluders: Occluders::new(scene),
+            occluders,
             grid: TexelGrid::new(texels, hidden, 1.5 * texel_size),
             passes_light: scene.primitives.iter().map(|p| scene.material(p).alpha != AlphaMode::Opaque).collect(),
             lift: LIFT_TEXELS * texel_size,

@@ -17,11 +17,14 @@ pub mod patches;
 pub mod supersample;
 mod surfaces;
 
+use std::cell::LazyCell;
+
 use anyhow::Result;
 use serde::{Deserialize, Serialize};
 
 use crate::environment::LightSet;
 use crate::gpu::Gpu;
+use crate::reference::Occluders;
 use crate::scene::Scene;
 use crate::texelize::{Texel, TexelSet};
 pub use bounce::{BounceOptions, BounceStats, TracePoint};
@@ -108,6 +111,9 @@ pub fn run(
 ) -> Result<Solution> {
     let mut skipped = Vec::new();
     let mut lightmap = vec![[0.0f32; 3]; texels.texels.len()];
+    // The scene's triangles on the CPU, built when a pass first asks (the
+    // supersample fix-up, the shooter patches, the contact fix-up).
+    let occluders = LazyCell::new(|| Occluders::new(scene));
     let mut direct_stats = None;
     let mut sees_itself = true;
     let mut coverage = None;
@@ -115,7 +121,7 @@ pub fn run(
     match lights {
         Some(lights) if !lights.lights.is_empty() => {
             let (direct, texels_supersampled) =
-                direct_light(gpu, scene, texels, lights, texels_per_unit, options, progress)?;
+                direct_light_with(gpu, scene, &occluders, texels, lights, texels_per_unit, options, progress)?;
             supersampled = texels_supersampled;
             for (value, e) in lightmap.iter_mut().zip(&direct.irradiance) {
                 *value = e.map(|c| c / std::f32::consts::PI);
@@ -149,7 +155,7 @@ pub fn run(
             texels,
             options.bounce.patches,
             texel_size,
-            Some(patches::Sight { scene, hidden: overlaps.as_ref().map(|o| o.hidden.as_slice()) }),
+            Some(patches::Sight { occluders: &occluders, hidden: overlaps.as_ref().map(|o| o.hidden.as_slice()) }),
         );
         // Overlapping surfaces bounce the light of their place once between
         // them: the bounce pass weighs each texel by its share of the area.
@@ -183,7 +189,8 @@ pub fn run(
         // The reach is in shooter patches' cells (`patches::build`'s), with
         // or without a bounce pass.
         let cell = patches::cell_size(texels, options.bounce.patches) as f64 * texel_size as f64;
-        let stats = contact::fix(scene, texels, hidden, lights, direct, &mut lightmap, cell, texel_size as f64);
+        let stats =
+            contact::fix(scene, &occluders, texels, hidden, lights, direct, &mut lightmap, cell, texel_size as f64);
         contact_stats = Some(stats);
     }
     let overlapped = overlaps.as_ref().map_or(0, Overlaps::count);
@@ -209,6 +216,23 @@ pub fn direct_light(
     options: &SolveOptions,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<(direct::Direct, usize)> {
+    let occluders = LazyCell::new(|| Occluders::new(scene));
+    direct_light_with(gpu, scene, &occluders, texels, lights, texels_per_unit, options, progress)
+}
+
+/// `direct_light` with the scene's triangles on the CPU built once for the
+/// whole solve, when the supersample fix-up first needs them.
+#[allow(clippy::too_many_arguments)]
+fn direct_light_with(
+    gpu: &Gpu,
+    scene: &Scene,
+    occluders: &LazyCell<Occluders, impl FnOnce() -> Occluders>,
+    texels: &TexelSet,
+    lights: &LightSet,
+    texels_per_unit: f32,
+    options: &SolveOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<(direct::Direct, usize)> {
     let mut gather = |points: &TexelSet, samples: &[Texel], lights: &LightSet| {
         direct::run(gpu, scene, points, samples, lights, texels_per_unit, options, progress)
     };
@@ -221,7 +245,7 @@ pub fn direct_light(
     // pass flags them and a second one gathers the sub-samples.
     let preview = supersample::preview_lights(lights);
     let first = gather(texels, &[], preview.as_ref().unwrap_or(lights))?;
-    let plan = supersample::plan(scene, texels, &first.irradiance);
+    let plan = supersample::plan(occluders, texels, &first.irradiance);
     let (mut direct, at_samples) = match (&preview, &plan) {
         (None, None) => return Ok((first, 0)),
         (None, Some(plan)) => {

@@ -17,7 +17,6 @@ use glam::{DVec3, IVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::reference::Occluders;
-use crate::scene::Scene;
 use crate::texelize::TexelSet;
 
 /// A patch as the GPU sees it. Mirrors `struct Patch` in common.wgsl.
@@ -180,13 +179,13 @@ pub fn cell_size(texels: &TexelSet, target: u32) -> u32 {
 /// split cell, and the part `split_by_sight` put it in.
 type Key = (u32, u32, u32, u32, u32, u32);
 
-/// What `split_by_sight` looks through: the texels' scene, and which texels
+/// What `split_by_sight` looks through: the scene's geometry, and which texels
 /// lie hidden under another surface (`overlaps`). Hidden texels take no
 /// part in it: a floor's texels under a statue's base are behind the statue
 /// from anywhere, and they bounce no light.
 #[derive(Clone, Copy)]
 pub struct Sight<'a> {
-    pub scene: &'a Scene,
+    pub occluders: &'a Occluders,
     pub hidden: Option<&'a [bool]>,
 }
 
@@ -206,7 +205,7 @@ pub struct Sight<'a> {
 /// none of its texels (under the floor, inside an object resting on them)
 /// leaves the group whole.
 fn split_by_sight(texels: &TexelSet, keyed: Vec<(Key, u32)>, texel_size: f32, sight: &Sight) -> Vec<(Key, u32)> {
-    let occluders = Occluders::new(sight.scene);
+    let occluders = sight.occluders;
     let hidden = |i: u32| sight.hidden.is_some_and(|h| h[i as usize]);
     let groups: Vec<&[(Key, u32)]> = keyed.chunk_by(|a, b| a.0 == b.0).collect();
     let parts: Vec<Vec<u32>> = groups
@@ -214,7 +213,7 @@ fn split_by_sight(texels: &TexelSet, keyed: Vec<(Key, u32)>, texel_size: f32, si
         .map(|group| {
             // Hidden texels stay in the first part.
             let members: Vec<u32> = group.iter().map(|&(_, i)| i).filter(|&i| !hidden(i)).collect();
-            let mut parts = sight_parts(texels, &members, texel_size, &occluders).into_iter();
+            let mut parts = sight_parts(texels, &members, texel_size, occluders).into_iter();
             group.iter().map(|&(_, i)| if hidden(i) { 0 } else { parts.next().unwrap_or(0) }).collect::<Vec<u32>>()
         })
         .collect();

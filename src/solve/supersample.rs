@@ -25,7 +25,6 @@ use rayon::prelude::*;
 
 use crate::environment::{Light, LightSet, luminance};
 use crate::reference::Occluders;
-use crate::scene::Scene;
 use crate::texelize::{Texel, TexelSet};
 
 /// Sub-sample offsets in texels from the texel's centre: the D3D standard
@@ -68,7 +67,7 @@ pub struct Plan {
 
 /// Flags the texels on a sharp change of `irradiance` and places their
 /// sub-samples. `None` when no texel needs them.
-pub fn plan(scene: &Scene, texels: &TexelSet, irradiance: &[[f32; 3]]) -> Option<Plan> {
+pub fn plan(occluders: &Occluders, texels: &TexelSet, irradiance: &[[f32; 3]]) -> Option<Plan> {
     let (width, height) = (texels.width as i64, texels.height as i64);
     // Texels are in row-major atlas order: a neighbour is found by binary
     // search (a lookup table would take 1 GiB at 16384²).
@@ -107,7 +106,6 @@ pub fn plan(scene: &Scene, texels: &TexelSet, irradiance: &[[f32; 3]]) -> Option
     if flagged.is_empty() {
         return None;
     }
-    let occluders = Occluders::new(scene);
     // Each flagged texel's sub-samples, in texel order (rayon keeps it).
     let per_texel: Vec<Vec<Texel>> = flagged
         .par_iter()
