@@ -176,6 +176,15 @@ struct BounceParams {
 // cell: where in the patch its unshot light is, for the near field.
 const SUB_CELLS: u32 = 4u;
 const SUB_CELL_COUNT: u32 = 16u;
+// The sub-cell of its patch a texel lies in: its place in the patch's atlas
+// cell, SUB_CELLS to a side.
+fn sub_cell(texel: Texel, bounce: BounceParams) -> u32 {
+    let x = texel.index % bounce.atlas_width;
+    let y = texel.index / bounce.atlas_width;
+    let cx = (x % bounce.cell) * SUB_CELLS / bounce.cell;
+    let cy = (y % bounce.cell) * SUB_CELLS / bounce.cell;
+    return cy * SUB_CELLS + cx;
+}
 // What is kept per sub-cell of a batch's shooter (solve_patch_power.wgsl's
 // `shooter_cells`): three rows of SUB_CELL_COUNT vectors per slot.
 const SUB_CELL_ROWS: u32 = 3u;

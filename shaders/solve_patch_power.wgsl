@@ -61,15 +61,6 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
-// The sub-cell of its patch a texel lies in: its place in the patch's atlas
-// cell, SUB_CELLS to a side.
-fn sub_cell(texel: Texel) -> u32 {
-    let x = texel.index % params.atlas_width;
-    let y = texel.index / params.atlas_width;
-    let cx = (x % params.cell) * SUB_CELLS / params.cell;
-    let cy = (y % params.cell) * SUB_CELLS / params.cell;
-    return cy * SUB_CELLS + cx;
-}
 
 // A patch whose sub-cells' mean normals all lie within about 2.5° of its
 // own is flat.
@@ -92,7 +83,7 @@ fn shooter_cells_of_batch(@builtin(workgroup_id) group: vec3<u32>, @builtin(loca
         for (var m = 0u; m < own.count; m++) {
             let i = members[own.first + m];
             let texel = texels[i];
-            if (sub_cell(texel) == c) {
+            if (sub_cell(texel, params) == c) {
                 // Light by the bouncing area, over the whole area: a sub-cell
                 // where two surfaces coincide has half the radiance of each.
                 power += unshot[i].rgb * texel.area * shares[i];

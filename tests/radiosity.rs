@@ -150,7 +150,9 @@ fn the_inside_of_a_sphere_lit_by_a_glowing_cap_is_evenly_lit() {
     // L_lm = Le · A_cap / A_sphere / (1 − ρ) everywhere. Patches of 64 to
     // the sphere are curved (45° across); one flat parallelogram standing
     // in for one of them in the near field hovered in front of its
-    // neighbours and lit them up to 1.47× the mean.
+    // neighbours and lit them up to 1.47× the mean. And each lights itself:
+    // left out, the cap's own patches' glow went to the rest of the sphere
+    // and the cap read 8 % low.
     let sphere = MeshData::sphere(1.0, 48, 24);
     let cap = inside_of(&sphere, |c| c.y > 0.8);
     let rest = inside_of(&sphere, |c| c.y <= 0.8);
@@ -167,10 +169,14 @@ fn the_inside_of_a_sphere_lit_by_a_glowing_cap_is_evenly_lit() {
         .collect();
     let spread = (values.iter().map(|v| (v - 1.0).powi(2)).sum::<f64>() / values.len() as f64).sqrt();
     let brightest = values.iter().copied().fold(0.0, f64::max);
-    eprintln!("mean {mean:.4} (expected {expected:.4}), RMS spread {:.2} %, brightest {brightest:.3}", spread * 100.0);
-    assert!((mean / expected - 1.0).abs() < 0.05, "mean {mean} vs {expected}");
-    // A patch does not light its own texels, which a concave patch should:
-    // the cap reads about 8 % low. Nothing may read far above the mean.
+    let cap_mean = area_mean(&baked, &[0], |i| baked.solution.lightmap[i][0]);
+    eprintln!(
+        "mean {mean:.4} (expected {expected:.4}), cap {:.4} × the mean, RMS spread {:.2} %, brightest {brightest:.3}",
+        cap_mean / mean,
+        spread * 100.0
+    );
+    assert!((mean / expected - 1.0).abs() < 0.02, "mean {mean} vs {expected}");
+    assert!((cap_mean / mean - 1.0).abs() < 0.03, "the cap reads {} × the mean", cap_mean / mean);
     assert!(brightest < 1.15, "a texel reads {brightest} × the mean");
     assert!(spread < 0.04, "RMS spread {spread}");
 }
