@@ -28,10 +28,9 @@
 //! Texels whose rays meet an alpha-masked or blended surface keep the GPU
 //! passes' value: the CPU scene here is geometry only.
 
-use std::collections::HashMap;
-
 use glam::{DVec3, IVec3, Vec3};
 use rayon::prelude::*;
+use rustc_hash::FxHashMap;
 
 use crate::environment::{Light, LightSet};
 use crate::reference::{Occluders, Rng, basis, cosine_hemisphere};
@@ -283,7 +282,7 @@ impl<'a> Tracer<'a> {
 
     /// The texel whose light a ray along `d` takes where it meets the
     /// triangle of `primitive` and face normal `face` at `p`: the nearest
-    /// (`TexelGrid::candidates`) that `p` reaches along the surface, past
+    /// (`TexelGrid::nearest`) that `p` reaches along the surface, past
     /// nothing standing up from it (`STANDING_COS`). (A ray
     /// meeting a room's floor beside its wall took the light of the lit
     /// ground outside, a texel nearer than the floor's.) Another
@@ -291,8 +290,7 @@ impl<'a> Tracer<'a> {
     /// meets either's triangle, and the ground's texels there are hidden.
     fn texel_at(&self, p: DVec3, primitive: u32, face: DVec3, d: DVec3) -> Option<u32> {
         let side = if face.dot(d) < 0.0 { face } else { -face } * self.min_lift;
-        let candidates = self.grid.candidates(self.texels, p, primitive, face, d);
-        candidates.into_iter().map(|(_, i)| i).find(|&i| {
+        self.grid.nearest(p, primitive, face, d, |i| {
             let t = self.texels.texels[i as usize].position().as_dvec3();
             !self.occluders.blocks_where(p + side, t + side, |_, other| other.dot(face).abs() < STANDING_COS)
         })
@@ -396,48 +394,75 @@ fn cosine_directions(t: &Texel, side: u32, key: &[u64]) -> impl Iterator<Item = 
 }
 
 /// Texels by world position, in cubes `cell` wide (hidden ones left out).
+/// Each cube's texels lie together in `entries`, with what a lookup reads
+/// (a gather ray's lookup read whole texels from all over the set, and
+/// hashed its 27 cubes with SipHash: half the fix-up's time).
 struct TexelGrid {
     cell: f64,
-    cubes: HashMap<IVec3, Vec<u32>>,
+    /// Each cube's range of `entries`.
+    cubes: FxHashMap<IVec3, (u32, u32)>,
+    entries: Vec<GridTexel>,
+}
+
+struct GridTexel {
+    position: Vec3,
+    face: Vec3,
+    primitive: u32,
+    index: u32,
 }
 
 impl TexelGrid {
     fn new(texels: &TexelSet, hidden: Option<&[bool]>, cell: f64) -> TexelGrid {
-        let mut cubes: HashMap<IVec3, Vec<u32>> = HashMap::new();
-        for (i, t) in texels.texels.iter().enumerate() {
-            if t.area > 0.0 && !hidden.is_some_and(|h| h[i]) {
-                cubes.entry((t.position().as_dvec3() / cell).floor().as_ivec3()).or_default().push(i as u32);
-            }
+        let cube_of = |t: &Texel| (t.position().as_dvec3() / cell).floor().as_ivec3();
+        // By cube, and by texel index within one.
+        let mut keyed: Vec<(IVec3, u32)> = (0..texels.texels.len())
+            .filter(|&i| texels.texels[i].area > 0.0 && !hidden.is_some_and(|h| h[i]))
+            .map(|i| (cube_of(&texels.texels[i]), i as u32))
+            .collect();
+        keyed.par_sort_unstable_by_key(|&(cube, i)| (cube.to_array(), i));
+        let mut cubes = FxHashMap::default();
+        let mut entries = Vec::with_capacity(keyed.len());
+        for (k, &(cube, i)) in keyed.iter().enumerate() {
+            let t = &texels.texels[i as usize];
+            cubes.entry(cube).or_insert((k as u32, k as u32)).1 += 1;
+            entries.push(GridTexel {
+                position: t.position(),
+                face: Vec3::from(t.face_normal),
+                primitive: t.primitive,
+                index: i,
+            });
         }
-        TexelGrid { cell, cubes }
+        TexelGrid { cell, cubes, entries }
     }
 
-    /// Texels in the 27 cubes around `p` whose face lies the same way as
-    /// `face` (either side) and whose front a ray along `d` meets, with
-    /// their squared distance to `p`, another primitive's than `primitive`
-    /// penalized by half a cube (nearest first).
-    fn candidates(&self, texels: &TexelSet, p: DVec3, primitive: u32, face: DVec3, d: DVec3) -> Vec<(f64, u32)> {
+    /// The nearest texel `accept`s of those in the 27 cubes around `p`
+    /// whose face lies the same way as `face` (either side) and whose front
+    /// a ray along `d` meets, another primitive's than `primitive` taken
+    /// as if half a cube farther. The nearest is tried first; the rest,
+    /// nearest first, only when it is refused.
+    fn nearest(&self, p: DVec3, primitive: u32, face: DVec3, d: DVec3, accept: impl Fn(u32) -> bool) -> Option<u32> {
         let home = (p / self.cell).floor().as_ivec3();
         let other = (0.5 * self.cell).powi(2);
-        let mut found = Vec::new();
-        for dz in -1..=1 {
-            for dy in -1..=1 {
-                for dx in -1..=1 {
-                    let Some(cube) = self.cubes.get(&(home + IVec3::new(dx, dy, dz))) else {
-                        continue;
-                    };
-                    for &i in cube {
-                        let t = &texels.texels[i as usize];
-                        let f = face_of(t);
-                        if f.dot(face).abs() >= 0.5 && f.dot(d) < 0.0 {
-                            let distance = (t.position().as_dvec3() - p).length_squared();
-                            found.push((if t.primitive == primitive { distance } else { distance + other }, i));
-                        }
-                    }
-                }
-            }
+        let candidates =
+            (-1..=1).flat_map(|dz| (-1..=1).flat_map(move |dy| (-1..=1).map(move |dx| IVec3::new(dx, dy, dz))));
+        let candidates = candidates
+            .filter_map(|offset| self.cubes.get(&(home + offset)))
+            .flat_map(|&(start, end)| &self.entries[start as usize..end as usize])
+            .filter(|t| {
+                let f = t.face.as_dvec3();
+                f.dot(face).abs() >= 0.5 && f.dot(d) < 0.0
+            })
+            .map(|t| {
+                let distance = (t.position.as_dvec3() - p).length_squared();
+                (if t.primitive == primitive { distance } else { distance + other }, t.index)
+            });
+        // The first of equally near ones, as a stable sort would give.
+        let nearest = candidates.clone().reduce(|best, c| if c.0 < best.0 { c } else { best })?;
+        if accept(nearest.1) {
+            return Some(nearest.1);
         }
-        found.sort_by(|a, b| a.0.total_cmp(&b.0));
-        found
+        let mut rest: Vec<(f64, u32)> = candidates.collect();
+        rest.sort_by(|a, b| a.0.total_cmp(&b.0));
+        rest.into_iter().map(|(_, i)| i).filter(|&i| i != nearest.1).find(|&i| accept(i))
     }
 }
