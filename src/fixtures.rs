@@ -157,6 +157,21 @@ impl MeshData {
         mesh
     }
 
+    /// Adds `other`, placed by `placement`, to this mesh: one mesh of
+    /// several parts, as exporters often merge them.
+    pub fn append(&mut self, other: &MeshData, placement: Placement) {
+        let base = self.positions.len() as u32;
+        let Placement { translation, rotation, scale } = placement;
+        for p in &other.positions {
+            self.positions.push((rotation * (Vec3::from(*p) * scale) + translation).to_array());
+        }
+        for n in &other.normals {
+            self.normals.push((rotation * (Vec3::from(*n) / scale)).normalize_or_zero().to_array());
+        }
+        self.uv0.extend_from_slice(&other.uv0);
+        self.indices.extend(other.indices.iter().map(|i| i + base));
+    }
+
     /// A unit geodesic sphere: the icosahedron with each edge cut into `frequency` segments
     /// (10·f² + 2 vertices, 20·f² triangles), projected onto the sphere, shared vertices welded,
     /// counter-clockwise seen from outside. TEXCOORD_0 is each vertex's (longitude, latitude).

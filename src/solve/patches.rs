@@ -195,9 +195,13 @@ pub struct Sight<'a> {
 /// standing across a floor's cell hid the far side's texels from the
 /// origin on the near side, and the cell's light, shot from there, reached
 /// the wall's foot on one side only (its lowest 3 cm got 0.26 of the path
-/// tracer's bounced light, BENCHMARKS.md). Only other primitives block a
-/// sight line (a chord across a convex patch dips under its own facets),
-/// and only surfaces standing up from the patch (`STANDING_COS`): a ball's
+/// tracer's bounced light, BENCHMARKS.md). Only surfaces standing up from
+/// the patch (`STANDING_COS`) block a sight line, its own primitive's too
+/// (a wall merged into the ground's mesh, as exporters often do: cut by
+/// other primitives only, its foot's middle band read 0.90 instead of
+/// 0.95). Lines run over the patch, so a convex patch's own facets never
+/// meet one, and a concave one's rim is not turned that far. Surfaces
+/// lying along the patch do not block: a ball's
 /// or a ring's underside touching a floor cut its cells into slivers around
 /// the contact, whose parallelograms (their atlas cells' bounds) then lit
 /// the contact as if it were open floor (the corner fixture's ring: 4.7 %
@@ -255,8 +259,7 @@ fn sight_parts(texels: &TexelSet, members: &[u32], texel_size: f32, occluders: &
                 // from just above it would pass through the floor.
                 let position = t.position().as_dvec3();
                 let at = position + normal * (eye - position).dot(normal);
-                let standing =
-                    |primitive: u32, face: DVec3| primitive != t.primitive && face.dot(normal).abs() < STANDING_COS;
+                let standing = |_, face: DVec3| face.dot(normal).abs() < STANDING_COS;
                 last || !occluders.blocks_where(eye, at, standing)
             })
             .collect();
