@@ -25,7 +25,8 @@
 // mean normal: where the patch's surface is and which way it faces, part by
 // part, for the near field. The first normal's w is 1 where some sub-cell
 // turns from the patch's normal by more than FLAT_COS allows: a curved
-// patch, integrated part by part.
+// patch, integrated part by part. The first centroid's w is the share of
+// its light such a patch gives itself (`own_share`).
 @group(0) @binding(8) var<storage, read_write> shooter_cells: array<vec4f>;
 // Per texel: the share of its area that bounces light (src/solve/overlaps.rs):
 // its unshot light counts for that share of its area.
@@ -67,6 +68,11 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
 const FLAT_COS: f32 = 0.999;
 
 var<workgroup> curved: atomic<u32>;
+// The batch's sub-cells, for `own_share`.
+var<workgroup> cell_area: array<f32, SUB_CELL_COUNT>;
+var<workgroup> cell_centroid: array<vec3f, SUB_CELL_COUNT>;
+var<workgroup> cell_normal: array<vec3f, SUB_CELL_COUNT>;
+var<workgroup> own_sums: array<f32, SUB_CELL_COUNT>;
 
 // One workgroup per shooter slot, one invocation per sub-cell; run before
 // the shoot pass clears the shooters' unshot light.
@@ -94,13 +100,54 @@ fn shooter_cells_of_batch(@builtin(workgroup_id) group: vec3<u32>, @builtin(loca
         }
     }
     let base = k * SUB_CELL_ROWS * SUB_CELL_COUNT;
+    let at = select(vec3f(0.0), centroid / area, area > 0.0);
     shooter_cells[base + c] = vec4f(power, area);
-    shooter_cells[base + SUB_CELL_COUNT + c] = vec4f(select(vec3f(0.0), centroid / area, area > 0.0), 0.0);
+    shooter_cells[base + SUB_CELL_COUNT + c] = vec4f(at, 0.0);
     let facing = select(vec3f(0.0), normalize(normal), dot(normal, normal) > 0.0);
     if (area > 0.0 && dot(facing, s.normal) < FLAT_COS) {
         atomicOr(&curved, 1u);
     }
+    cell_area[c] = area;
+    cell_centroid[c] = at;
+    cell_normal[c] = select(s.normal, facing, dot(facing, facing) > 0.0);
     workgroupBarrier();
-    let is_curved = f32(atomicLoad(&curved));
-    shooter_cells[base + 2u * SUB_CELL_COUNT + c] = vec4f(facing, select(0.0, is_curved, c == 0u));
+    let is_curved = atomicLoad(&curved) != 0u;
+    shooter_cells[base + 2u * SUB_CELL_COUNT + c] = vec4f(facing, select(0.0, 1.0, is_curved && c == 0u));
+    var own = 0.0;
+    if (is_curved) {
+        own = own_share(s, c);
+    }
+    own_sums[c] = own;
+    workgroupBarrier();
+    if (c == 0u) {
+        var total = 0.0;
+        for (var d = 0u; d < SUB_CELL_COUNT; d++) {
+            total += own_sums[d];
+        }
+        shooter_cells[base + SUB_CELL_COUNT] = vec4f(at, total);
+    }
+}
+
+// Invocation `c`'s part of Σ F_i A_i / A over the texels i of shooter `s`'s
+// own (curved) patch, F_i the form factor of its other sub-cells' squares
+// to texel i, as the near field lights them (solve_shoot.wgsl's
+// `near_light`): the share of its light a patch gives itself where it is
+// concave, which the shoot pass's `finish` counts as covered. Left in the
+// first sub-cell's centroid's w.
+fn own_share(s: Shooter, c: u32) -> f32 {
+    let own = patches[s.patch_index];
+    var sum = 0.0;
+    for (var m = c; m < own.count; m += SUB_CELL_COUNT) {
+        let i = members[own.first + m];
+        let texel = texels[i];
+        let mine = sub_cell(texel, params);
+        var f = 0.0;
+        for (var d = 0u; d < SUB_CELL_COUNT; d++) {
+            if (d != mine) {
+                f += square_form_factor(texel.position, texel.normal, cell_centroid[d], cell_normal[d], cell_area[d], s.half_u);
+            }
+        }
+        sum += f * texel.area * shares[i];
+    }
+    return sum / max(s.area, 1e-30);
 }

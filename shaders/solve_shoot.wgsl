@@ -3,7 +3,7 @@
 //     L_lm,i += F_ij ΔL_j,   L_i, ΔL_i += ρ_i F_ij ΔL_j,
 // with visibility from the shooter's hemicube. Texels of a patch that shot
 // have their unshot light cleared (and then take what a curved patch gives
-// itself, `own_light`). Gathering per texel in a fixed order
+// itself, `near_light`). Gathering per texel in a fixed order
 // keeps bakes identical run to run: `main` sums the far field over the
 // batch's shooters, then `near_field` the near field of the receivers `main`
 // listed, each in slot order.
@@ -94,71 +94,6 @@ const NEAR_FIELD: f32 = 4.0;
 // (half texels), is in contact with it.
 const CONTACT: f32 = 0.1;
 
-// One edge's term of Lambert's contour integral, for corner vectors a, b
-// seen from the receiver.
-fn edge_term(a: vec3f, b: vec3f, n: vec3f) -> f32 {
-    if (dot(a, a) <= 0.0 || dot(b, b) <= 0.0) {
-        return 0.0;
-    }
-    let ua = normalize(a);
-    let ub = normalize(b);
-    let c = cross(ua, ub);
-    let length_c = length(c);
-    if (length_c <= 1e-9) {
-        return 0.0;
-    }
-    return atan2(length_c, dot(ua, ub)) * dot(n, c) / length_c;
-}
-
-// Edge a→b of the polygon clipped to the receiver's upper hemisphere
-// (da = a·n, db = b·n): adds its terms and remembers where the outline
-// leaves and re-enters the hemisphere. Written without arrays, which a CPU
-// driver would keep in memory per lane.
-fn clipped_edge(a: vec3f, b: vec3f, n: vec3f, exit: ptr<function, vec3f>, entry: ptr<function, vec3f>) -> f32 {
-    let da = dot(a, n);
-    let db = dot(b, n);
-    if (da >= 0.0 && db >= 0.0) {
-        return edge_term(a, b, n);
-    }
-    if (da >= 0.0) {
-        let x = a + (b - a) * (da / (da - db));
-        *exit = x;
-        return edge_term(a, x, n);
-    }
-    if (db >= 0.0) {
-        let x = a + (b - a) * (da / (da - db));
-        *entry = x;
-        return edge_term(x, b, n);
-    }
-    return 0.0;
-}
-
-// The form factor from a point at p with unit normal n to the
-// parallelogram centre ± u ± v (Lambert's contour integral; Baum, Rushmeier
-// & Winget 1989), clipped to the point's upper hemisphere. Exact and bounded
-// at any distance, including a receiver touching the shooter.
-fn parallelogram_form_factor(p: vec3f, n: vec3f, centre: vec3f, u: vec3f, v: vec3f) -> f32 {
-    let c = centre - p;
-    let c0 = c - u - v;
-    let c1 = c + u - v;
-    let c2 = c + u + v;
-    let c3 = c - u + v;
-    let above = u32(dot(c0, n) >= 0.0) + u32(dot(c1, n) >= 0.0) + u32(dot(c2, n) >= 0.0) + u32(dot(c3, n) >= 0.0);
-    if (above == 0u) {
-        return 0.0;
-    }
-    var exit = vec3f(0.0);
-    var entry = vec3f(0.0);
-    var sum = clipped_edge(c0, c1, n, &exit, &entry);
-    sum += clipped_edge(c1, c2, n, &exit, &entry);
-    sum += clipped_edge(c2, c3, n, &exit, &entry);
-    sum += clipped_edge(c3, c0, n, &exit, &entry);
-    // Close the outline along the horizon where the polygon was cut.
-    if (above < 4u) {
-        sum += edge_term(exit, entry, n);
-    }
-    return abs(sum) / (2.0 * PI);
-}
 
 // The direction (shooter's frame, not normalized) through the centre of
 // hemicube texel `xy` of `face`, whose viewport is `view`.
@@ -290,34 +225,25 @@ fn near_form_factor(texel: Texel, s: Shooter, k: u32) -> f32 {
     if (!is_curved(k)) {
         return flat_form_factor(texel, s);
     }
-    return sub_cells_form_factor(texel, s, k, SUB_CELL_COUNT);
-}
-
-// The sum of `sub_cell_form_factor` over shooter `s`'s sub-cells but
-// `skip` (SUB_CELL_COUNT: none).
-fn sub_cells_form_factor(texel: Texel, s: Shooter, k: u32, skip: u32) -> f32 {
     var f = 0.0;
     for (var c = 0u; c < SUB_CELL_COUNT; c++) {
-        if (c != skip) {
-            f += sub_cell_form_factor(texel, s, k, c);
-        }
+        f += sub_cell_form_factor(texel, s, k, c);
     }
     return f;
 }
 
 // The unshot light a near-field receiver takes from shooter `s` (slot
 // `k`): as `near_form_factor`, a flat patch's by where on it its light is
-// (`near_radiance`), a curved one's by each sub-cell's own.
-fn near_light(texel: Texel, s: Shooter, k: u32) -> vec3f {
+// (`near_radiance`), a curved one's by each sub-cell's own but `skip`
+// (SUB_CELL_COUNT: none). A curved patch's own texels are receivers too:
+// where it is concave (the inside of a sphere, a bowl) one part lights
+// another (left out, the glowing cap inside a sphere of 64 patches read 6 %
+// low, its patches' light going to the rest). A flat or convex patch gives
+// them none: no texel of it lies in front of another sub-cell's square.
+fn near_light(texel: Texel, s: Shooter, k: u32, skip: u32) -> vec3f {
     if (!is_curved(k)) {
         return flat_form_factor(texel, s) * near_radiance(texel, s, k);
     }
-    return sub_cells_light(texel, s, k, SUB_CELL_COUNT);
-}
-
-// The light of shooter `s`'s sub-cells but `skip`, each by its own unshot
-// light (`near_light`).
-fn sub_cells_light(texel: Texel, s: Shooter, k: u32, skip: u32) -> vec3f {
     let base = k * SUB_CELL_ROWS * SUB_CELL_COUNT;
     var light = vec3f(0.0);
     for (var c = 0u; c < SUB_CELL_COUNT; c++) {
@@ -327,17 +253,6 @@ fn sub_cells_light(texel: Texel, s: Shooter, k: u32, skip: u32) -> vec3f {
         }
     }
     return light;
-}
-
-// A curved patch's light on its own texels: where it is concave (the
-// inside of a sphere, a bowl) one part lights another. Each texel takes it
-// from the patch's other sub-cells (its own, flat at its scale, gives next
-// to none and its square would hover over the texel). Left out, the glowing
-// cap inside a sphere of 64 patches read 8 % low, its own patch's light
-// going to the others. A flat or convex patch gives none: no texel lies in
-// front of another sub-cell.
-fn own_light(texel: Texel, s: Shooter, k: u32) -> vec3f {
-    return sub_cells_light(texel, s, k, sub_cell(texel, params));
 }
 
 // Whether the shooter in slot `k` is curved (solve_patch_power.wgsl
@@ -362,19 +277,9 @@ fn sub_cell_form_factor(texel: Texel, s: Shooter, k: u32, c: u32) -> f32 {
     let centroid = shooter_cells.items[base + SUB_CELL_COUNT + c].xyz;
     let facing = shooter_cells.items[base + 2u * SUB_CELL_COUNT + c].xyz;
     let normal = select(s.normal, facing, dot(facing, facing) > 0.0);
-    if (!(area > 0.0 && dot(texel.position - centroid, normal) > 0.0)) {
-        return 0.0;
-    }
-    let u = tangent_along(normal, s.half_u) * (0.5 * sqrt(area));
-    return parallelogram_form_factor(texel.position, texel.normal, centroid, u, cross(normal, u));
+    return square_form_factor(texel.position, texel.normal, centroid, normal, area, s.half_u);
 }
 
-// The unit vector in the plane across `normal` nearest `towards` (any one
-// where `towards` is along the normal).
-fn tangent_along(normal: vec3f, towards: vec3f) -> vec3f {
-    let t = towards - normal * dot(towards, normal);
-    return select(basis(normal)[0], normalize(t), dot(t, t) > 1e-12 * dot(towards, towards) + 1e-30);
-}
 
 // The far field of every receiver; receivers in some shooter's near field
 // are listed for `near_field`. A CPU driver runs both sides of every branch
@@ -398,7 +303,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         }
         if (s.patch_index == own_patch) {
             shot = true;
-            // A curved patch lights itself where it is concave (`own_light`).
+            // A curved patch lights itself where it is concave (`near_light`).
             if (is_curved(k)) {
                 near_slots |= 1u << k;
             }
@@ -478,11 +383,11 @@ fn near_field(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgro
     for (var slots = entry.y; slots != 0u; slots &= slots - 1u) {
         let k = firstTrailingBit(slots);
         let s = shooters.items[k];
-        if (s.patch_index == texel_patch[i]) {
-            gathered += own_light(texel, s, k);
-        } else {
-            gathered += near_light(texel, s, k);
-        }
+        // A texel of the shooter's own (curved) patch takes none from its
+        // own sub-cell: flat at its scale, it gives next to none, and its
+        // square would hover over the texel.
+        let skip = select(SUB_CELL_COUNT, sub_cell(texel, params), s.patch_index == texel_patch[i]);
+        gathered += near_light(texel, s, k, skip);
     }
     lightmap[i] += vec4f(gathered, 0.0);
     unshot[i] += vec4f(texel.albedo * gathered, luminance(gathered) * texel.area * shares[i]);
@@ -554,11 +459,6 @@ fn measure(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
                 let f = shot_form_factor(texel, s, k) * texel.area * share;
                 near[k - base] += f.x;
                 far[k - base] += f.y;
-            } else if (is_curved(k)) {
-                // The hemicube, above the patch, sees past it what the
-                // patch itself covers from its surface: its own light is
-                // part of the covered share, as the near field is.
-                near[k - base] += sub_cells_form_factor(texel, s, k, sub_cell(texel, params)) * texel.area * share;
             }
         }
     }
@@ -604,6 +504,12 @@ fn finish(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_ind
         }
         measured[part] = workgroup_sum(sum, lid);
     }
+    // What a curved patch gives itself (solve_patch_power.wgsl): its
+    // hemicube, above the patch, sees past it what the patch covers from its
+    // surface, so that light is part of the covered share, as the near field
+    // is. (Summed in the measure pass, it cost every texel-slot pair the
+    // sub-cells' form factors on a CPU driver: +35 % bounce time.)
+    measured.x += shooter_cells.items[(k * SUB_CELL_ROWS + 1u) * SUB_CELL_COUNT].w;
 
     // Delta form factor of a pixel on a face at unit distance, direction d:
     // d.z dA / (π |d|⁴), with dA = (2/S)² on every face.
