@@ -88,12 +88,14 @@ fn draw(scene: &SceneReport, svg: &mut String) -> Result<(), Box<dyn std::error:
         .x_label_area_size(40)
         .y_label_area_size(70)
         .build_cartesian_2d(0f64..t_max, (lo..hi).log_scale())?;
-    chart
-        .configure_mesh()
-        .x_desc("seconds since the bounce pass started")
-        .y_desc("fraction (log)")
-        .y_label_formatter(&|v| format!("{v:.0e}"))
-        .draw()?;
+    // The trace's last point is after the contact fix-up when it took texels.
+    let contact = scene.texels.fixups.iter().any(|f| f.stage == "contact" && f.texels > 0);
+    let x_desc = if contact {
+        "seconds since the bounce pass started (the last point: after the contact fix-up)"
+    } else {
+        "seconds since the bounce pass started"
+    };
+    chart.configure_mesh().x_desc(x_desc).y_desc("fraction (log)").y_label_formatter(&|v| format!("{v:.0e}")).draw()?;
     for (label, color, points) in series {
         chart
             .draw_series(LineSeries::new(points.iter().copied(), color.stroke_width(2)))?

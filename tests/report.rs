@@ -297,6 +297,31 @@ fn reference_traces_the_true_error_and_plots_it() {
     assert!(found.is_empty(), "{found:?}");
 }
 
+#[test]
+fn the_plotted_trace_ends_at_the_error_the_report_gives_after_the_contact_fix_up() {
+    // corner's ball and ring touch its floor: the contact fix-up changes the
+    // light the bounce pass left there, after the pass's last trace point.
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture("corner.glb");
+    let env = fixture("sky_sun.exr");
+    let args = [input.to_str().unwrap(), "--env", env.to_str().unwrap(), "-o", "out", "--max-atlas-size", "64"];
+    let extra = ["--lights", "64", "--reference", "64", "--reference-samples", "64", "--plot"];
+    let output = bake(dir.path(), &[&args[..], &extra[..]].concat());
+    assert!(output.status.success(), "{}", stderr(&output));
+    let report: Report = serde_json::from_slice(&std::fs::read(dir.path().join("out/report.json")).unwrap()).unwrap();
+    let scene = &report.scenes[0];
+    let contact = scene.texels.fixups.iter().find(|f| f.stage == "contact").expect("a contact fix-up entry");
+    assert!(contact.texels > 0, "texels near corner's contacts are traced");
+    let trace = &scene.bounce.as_ref().unwrap().trace;
+    let [.., before, last] = trace.as_slice() else { panic!("a trace of two points or more") };
+    let final_error = scene.reference.as_ref().expect("--reference is reported").error;
+    eprintln!("trace's last points {before:?}, {last:?}; the report's error {final_error}");
+    assert!(last.seconds > before.seconds && last.shots == before.shots, "the last point is the fix-up's");
+    assert!((last.reference_error.unwrap() - final_error).abs() < 1e-12, "the trace ends at the report's error");
+    let svg = std::fs::read_to_string(dir.path().join("out/corner.convergence.svg")).unwrap();
+    assert!(svg.contains("after the contact fix-up"), "the plot says what its last point is");
+}
+
 fn errors_of(validator: &jsonschema::Validator, report: &Value) -> Vec<String> {
     errors(validator, report)
 }

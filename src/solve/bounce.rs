@@ -145,7 +145,8 @@ impl Default for BounceOptions {
     }
 }
 
-/// One point of the convergence trace, recorded before each batch.
+/// One point of the convergence trace, recorded before each batch (and
+/// one after the contact fix-up, `solve::run`).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct TracePoint {
     /// Seconds since the bounce pass started.
