@@ -159,6 +159,8 @@ struct Cell {
     solve: f64,
     direct: f64,
     bounce: f64,
+    /// The contact fix-up, after the bounce pass.
+    contact: f64,
     peak_rss: Option<u64>,
     gpu_peak: Option<u64>,
     evaluations: u64,
@@ -400,6 +402,7 @@ fn grid(gpu: &Gpu, args: &Args, statues: &Statues, map: &Arc<EnvironmentMap>) ->
                     solve: seconds("solve"),
                     direct: direct.map_or(0.0, |d| d.seconds),
                     bounce: bounce.map_or(0.0, |b| b.seconds),
+                    contact: baked.solution.contact.as_ref().map_or(0.0, |c| c.seconds),
                     peak_rss,
                     gpu_peak,
                     evaluations: direct.map_or(0, |d| d.evaluations),
@@ -518,16 +521,18 @@ fn grid(gpu: &Gpu, args: &Args, statues: &Statues, map: &Arc<EnvironmentMap>) ->
     let (curve_mode, curve_count) = curve_cell(args);
     let heaviest = cells.iter().rev().find(|c| c.mode == curve_mode && c.requested == curve_count);
     if let Some(c) = heaviest {
-        let offset = c.total() - c.bounce;
+        let offset = c.total() - c.bounce - c.contact;
         println!(
             "\n## Error against time: {} {} lights at {}²\n\nThe bounce pass's trace: one point per batch of shots \
-             (every point up to 16, then every k-th). \"time\" counts from the bake's start (the bounce pass starts \
-             at {offset:.1} s, after light extraction, unwrap, texelize and the direct pass); the estimate is the \
-             solver's own (the ambient term for the unshot light over the mean); the error is the relative RMSE \
-             against the reference of the lightmap as it would be if the pass stopped there.\n",
+             (every point up to 16, then every k-th), and one after the contact fix-up ({:.1} s) where it took \
+             texels. \"time\" counts from the bake's start (the bounce pass starts at {offset:.1} s, after light \
+             extraction, unwrap, texelize and the direct pass); the estimate is the solver's own (the ambient term \
+             for the unshot light over the mean); the error is the relative RMSE against the reference of the \
+             lightmap as it would be if the pass stopped there.\n",
             mode_name(c.mode),
             c.lights,
-            c.size
+            c.size,
+            c.contact
         );
         println!("| time (s) | bounce (s) | shots | unshot | estimate | error |");
         println!("|---|---|---|---|---|---|");
