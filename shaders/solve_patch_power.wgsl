@@ -62,7 +62,6 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
-
 // A patch whose sub-cells' mean normals all lie within about 2.5° of its
 // own is flat.
 const FLAT_COS: f32 = 0.999;

@@ -94,7 +94,6 @@ const NEAR_FIELD: f32 = 4.0;
 // (half texels), is in contact with it.
 const CONTACT: f32 = 0.1;
 
-
 // The direction (shooter's frame, not normalized) through the centre of
 // hemicube texel `xy` of `face`, whose viewport is `view`.
 fn hemicube_texel_direction(xy: vec2<i32>, view: vec4f, face: u32) -> vec3f {
@@ -279,7 +278,6 @@ fn sub_cell_form_factor(texel: Texel, s: Shooter, k: u32, c: u32) -> f32 {
     let normal = select(s.normal, facing, dot(facing, facing) > 0.0);
     return square_form_factor(texel.position, texel.normal, centroid, normal, area, s.half_u);
 }
-
 
 // The far field of every receiver; receivers in some shooter's near field
 // are listed for `near_field`. A CPU driver runs both sides of every branch

@@ -202,7 +202,7 @@ pub fn bake_scene(
         samples: options.reference.as_ref().map_or(0, |r| r.samples),
         seconds,
         noise,
-        error: probes.relative_rmse(probes.texels.iter().map(|&i| solution.lightmap[i as usize].map(|v| v as f64))),
+        error: probes.lightmap_error(&solution.lightmap),
     });
     Ok(Baked { scene, atlas, texels, solution, stages, notices, reference, uv1_reused })
 }

@@ -23,9 +23,14 @@ fn stderr(output: &Output) -> String {
     String::from_utf8_lossy(&output.stderr).into_owned()
 }
 
-/// A tiny bake of sphere_on_ground under the sun sky into `dir/out`, with `extra` arguments.
+/// A tiny bake of sphere_on_ground under the sun sky into `dir/out`, at most 64 shots, with `extra` arguments.
 fn bake_fixture(dir: &Path, extra: &[&str]) -> Output {
-    let input = fixture("sphere_on_ground.glb");
+    bake_small(dir, "sphere_on_ground.glb", &[&["--max-shots", "64"][..], extra].concat())
+}
+
+/// A tiny bake (64² atlas, 64 lights) of fixture `name` under the sun sky into `dir/out`, with `extra` arguments.
+fn bake_small(dir: &Path, name: &str, extra: &[&str]) -> Output {
+    let input = fixture(name);
     let env = fixture("sky_sun.exr");
     let mut args = vec![
         input.to_str().unwrap(),
@@ -36,8 +41,6 @@ fn bake_fixture(dir: &Path, extra: &[&str]) -> Output {
         "--max-atlas-size",
         "64",
         "--lights",
-        "64",
-        "--max-shots",
         "64",
     ];
     args.extend_from_slice(extra);
@@ -266,12 +269,8 @@ fn plot_of_a_scene_without_a_bounce_pass_says_why() {
 #[test]
 fn reference_traces_the_true_error_and_plots_it() {
     let dir = tempfile::tempdir().unwrap();
-    let input = fixture("sphere_on_ground.glb");
-    let env = fixture("sky_sun.exr");
-    let args = [input.to_str().unwrap(), "--env", env.to_str().unwrap(), "-o", "out", "--max-atlas-size", "64"];
-    let extra = ["--lights", "64", "--reference", "24", "--reference-samples", "64", "--plot", "--log-format", "text"];
-    let output = bake(dir.path(), &[&args[..], &extra[..]].concat());
-    assert!(output.status.success(), "{}", stderr(&output));
+    let extra = ["--reference", "24", "--reference-samples", "64", "--plot", "--log-format", "text"];
+    let output = bake_small(dir.path(), "sphere_on_ground.glb", &extra);
     assert!(stderr(&output).contains("RMSE against the CPU reference at 24 texels"), "the summary says the error");
     let report: Report = serde_json::from_slice(&std::fs::read(dir.path().join("out/report.json")).unwrap()).unwrap();
     let scene = &report.scenes[0];
@@ -302,12 +301,7 @@ fn the_plotted_trace_ends_at_the_error_the_report_gives_after_the_contact_fix_up
     // corner's ball and ring touch its floor: the contact fix-up changes the
     // light the bounce pass left there, after the pass's last trace point.
     let dir = tempfile::tempdir().unwrap();
-    let input = fixture("corner.glb");
-    let env = fixture("sky_sun.exr");
-    let args = [input.to_str().unwrap(), "--env", env.to_str().unwrap(), "-o", "out", "--max-atlas-size", "64"];
-    let extra = ["--lights", "64", "--reference", "64", "--reference-samples", "64", "--plot"];
-    let output = bake(dir.path(), &[&args[..], &extra[..]].concat());
-    assert!(output.status.success(), "{}", stderr(&output));
+    bake_small(dir.path(), "corner.glb", &["--reference", "64", "--reference-samples", "64", "--plot"]);
     let report: Report = serde_json::from_slice(&std::fs::read(dir.path().join("out/report.json")).unwrap()).unwrap();
     let scene = &report.scenes[0];
     let contact = scene.texels.fixups.iter().find(|f| f.stage == "contact").expect("a contact fix-up entry");

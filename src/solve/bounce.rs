@@ -128,6 +128,11 @@ impl Probes {
         }
         if n == 0 || sum <= 0.0 { 0.0 } else { (squared / n as f64).sqrt() / (sum / n as f64) }
     }
+
+    /// `relative_rmse` of a whole lightmap (L_lm per texel) at the probes.
+    pub fn lightmap_error(&self, lightmap: &[[f32; 3]]) -> f64 {
+        self.relative_rmse(self.texels.iter().map(|&i| lightmap[i as usize].map(|v| v as f64)))
+    }
 }
 
 impl Default for BounceOptions {

@@ -223,12 +223,8 @@ fn trace_after_contact(
     let Some(last) = bounce.trace.last().cloned() else {
         return;
     };
-    let reference_error = options
-        .bounce
-        .probes
-        .as_deref()
-        .filter(|p| !p.texels.is_empty())
-        .map(|p| p.relative_rmse(p.texels.iter().map(|&i| lightmap[i as usize].map(|v| v as f64))));
+    let probes = options.bounce.probes.as_deref().filter(|p| !p.texels.is_empty());
+    let reference_error = probes.map(|p| p.lightmap_error(lightmap));
     bounce.trace.push(TracePoint { seconds: last.seconds + contact.seconds, reference_error, ..last });
 }
 
@@ -248,7 +244,7 @@ pub fn direct_light(
 }
 
 /// `direct_light` with the scene's triangles on the CPU built once for the
-/// whole solve, when the supersample fix-up first needs them.
+/// whole solve (here, when the supersample fix-up plans its sub-samples).
 #[allow(clippy::too_many_arguments)]
 fn direct_light_with(
     gpu: &Gpu,
