@@ -32,7 +32,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 
-use crate::report::{EnergyStats, PrimitiveEnergy, Report, SCHEMA_VERSION, SceneReport, luminance};
+use crate::report::{
+    EnergyStats, OLDEST_READABLE_VERSION, PrimitiveEnergy, Report, SCHEMA_VERSION, SceneReport, luminance,
+};
 
 /// Exit code: every check passed.
 pub const EXIT_PASS: u8 = 0;
@@ -210,9 +212,10 @@ pub fn read_report(path: &Path) -> Result<Report> {
     let value: serde_json::Value = serde_json::from_slice(&bytes)
         .with_context(|| format!("report '{}': not JSON (a baked report.json was expected)", path.display()))?;
     match value.get("schema_version").and_then(serde_json::Value::as_u64) {
-        Some(v) if v == SCHEMA_VERSION as u64 => {}
+        Some(v) if (OLDEST_READABLE_VERSION as u64..=SCHEMA_VERSION as u64).contains(&v) => {}
         Some(v) => bail!(
-            "report '{}' has schema version {v}; this bake reads version {SCHEMA_VERSION}: bake again to refresh it",
+            "report '{}' has schema version {v}; this bake reads versions {OLDEST_READABLE_VERSION} to \
+             {SCHEMA_VERSION}: bake again to refresh it",
             path.display()
         ),
         None => bail!("report '{}': no schema_version: not a bake report", path.display()),
@@ -343,12 +346,13 @@ pub fn compare(now: &Report, golden: &Report, tolerance: f64, only_scene: Option
     (changes, compared)
 }
 
-fn key(p: &PrimitiveEnergy) -> (usize, usize, usize) {
-    (p.node, p.mesh, p.primitive)
+fn key(p: &PrimitiveEnergy) -> (usize, Option<usize>, usize, usize) {
+    (p.node, p.instance, p.mesh, p.primitive)
 }
 
 fn display_name(p: &PrimitiveEnergy) -> String {
-    format!("{} (node {}, mesh {}, prim {})", p.name, p.node, p.mesh, p.primitive)
+    let instance = p.instance.map(|k| format!(", instance {k}")).unwrap_or_default();
+    format!("{} (node {}{instance}, mesh {}, prim {})", p.name, p.node, p.mesh, p.primitive)
 }
 
 /// Compares one primitive's figures; returns how many were compared.

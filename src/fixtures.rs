@@ -383,6 +383,29 @@ impl SceneBuilder {
         self.nodes.len() - 1
     }
 
+    /// Adds a root node at `placement` drawing `mesh` once per instance
+    /// (EXT_mesh_gpu_instancing), each instance placed relative to the node;
+    /// each instance's index is its `_ID` attribute.
+    pub fn instanced_node(&mut self, name: &str, mesh: usize, placement: Placement, instances: &[Placement]) -> usize {
+        let node = self.node(name, mesh, placement);
+        let mut attribute = |values: Vec<f32>, component_type: u32, kind: &str| {
+            // Instance attributes are no vertex data: their views have no target.
+            let view = self.push_view(bytemuck::cast_slice(&values), None);
+            let accessor =
+                json!({ "bufferView": view, "componentType": component_type, "count": instances.len(), "type": kind });
+            self.accessors.push(accessor);
+            self.accessors.len() - 1
+        };
+        let translation = attribute(instances.iter().flat_map(|i| i.translation.to_array()).collect(), 5126, "VEC3");
+        let rotation = attribute(instances.iter().flat_map(|i| i.rotation.to_array()).collect(), 5126, "VEC4");
+        let scale = attribute(instances.iter().flat_map(|i| i.scale.to_array()).collect(), 5126, "VEC3");
+        let id = attribute((0..instances.len()).map(|i| i as f32).collect(), 5126, "SCALAR");
+        self.nodes[node]["extensions"] = json!({ "EXT_mesh_gpu_instancing": { "attributes": {
+            "TRANSLATION": translation, "ROTATION": rotation, "SCALE": scale, "_ID": id,
+        } } });
+        node
+    }
+
     /// Convenience: a mesh with a material, drawn by one node.
     pub fn object(
         &mut self,
@@ -454,6 +477,9 @@ impl SceneBuilder {
         }
         if self.materials.iter().any(|m| m.pointer("/pbrMetallicRoughness/baseColorTexture/extensions").is_some()) {
             extensions_used.push("KHR_texture_transform");
+        }
+        if self.nodes.iter().any(|n| n.pointer("/extensions/EXT_mesh_gpu_instancing").is_some()) {
+            extensions_used.push("EXT_mesh_gpu_instancing");
         }
         let mut doc = json!({
             "asset": { "version": "2.0", "generator": "bake fixtures" },

@@ -1,6 +1,7 @@
 //! Import stage: a glTF file in, a `Scene` out: every static triangle
 //! primitive reachable from the default scene (or the first), node
-//! transforms applied, with its material. What cannot be baked (points,
+//! transforms applied, each GPU instance (EXT_mesh_gpu_instancing) as a
+//! primitive of its own, with its material. What cannot be baked (points,
 //! lines, skinned or morphing meshes) is left out with a notice, never
 //! silently.
 //!
@@ -14,7 +15,7 @@ use anyhow::{Context, Result, anyhow, bail};
 use glam::{DMat3, DMat4, DVec3};
 use gltf::mesh::Mode;
 
-use crate::asset::{SourceAsset, accessor};
+use crate::asset::{SourceAsset, accessor, instancing};
 use crate::repeats;
 use crate::scene::{AlphaMode, LinearImage, Material, Scene, ScenePrimitive, TextureRef, choose_origin};
 
@@ -45,7 +46,22 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
         let local = node.transform().matrix().map(|column| column.map(f64::from));
         let world = parent * DMat4::from_cols_array_2d(&local);
         if let Some(mesh) = node.mesh() {
-            collect_mesh(&source, &node, &mesh, world, &mut gathered, &mut notices)?;
+            match instancing::read(&source, node.index())? {
+                None => collect_mesh(&source, &node, None, &mesh, world, &mut gathered, &mut notices)?,
+                Some(instances) => {
+                    notices.push(format!(
+                        "{} is drawn as {} GPU instances ({}): each is baked with its own lightmap region and \
+                         written as a child node of its own, since instances share one set of UVs",
+                        describe(&node, &mesh, None),
+                        instances.placements.len(),
+                        instancing::EXTENSION
+                    ));
+                    for (k, placement) in instances.placements.iter().enumerate() {
+                        let world = world * placement.matrix();
+                        collect_mesh(&source, &node, Some(k), &mesh, world, &mut gathered, &mut notices)?;
+                    }
+                }
+            }
         }
         for child in node.children().collect::<Vec<_>>().into_iter().rev() {
             stack.push((child, world));
@@ -82,10 +98,11 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
     Ok(Scene { name, source, origin, primitives, materials, images, notices })
 }
 
-fn describe(node: &gltf::Node, mesh: &gltf::Mesh) -> String {
+fn describe(node: &gltf::Node, mesh: &gltf::Mesh, instance: Option<usize>) -> String {
     let node_name = node.name().map(|n| format!(" '{n}'")).unwrap_or_default();
     let mesh_name = mesh.name().map(|n| format!(" '{n}'")).unwrap_or_default();
-    format!("mesh {}{mesh_name} on node {}{node_name}", mesh.index(), node.index())
+    let instance = instance.map(|k| format!(", instance {k}")).unwrap_or_default();
+    format!("mesh {}{mesh_name} on node {}{node_name}{instance}", mesh.index(), node.index())
 }
 
 /// A primitive as read, with its world positions in f64 until the scene's origin is known.
@@ -126,12 +143,13 @@ fn finish_primitives(gathered: Vec<Gathered>, notices: &mut Vec<String>) -> Resu
 fn collect_mesh(
     source: &SourceAsset,
     node: &gltf::Node,
+    instance: Option<usize>,
     mesh: &gltf::Mesh,
     world: DMat4,
     gathered: &mut Vec<Gathered>,
     notices: &mut Vec<String>,
 ) -> Result<()> {
-    let what = describe(node, mesh);
+    let what = describe(node, mesh, instance);
     if node.skin().is_some() {
         notices.push(format!("{what} is skinned (not static): left out of the bake"));
         return Ok(());
@@ -213,6 +231,7 @@ fn collect_mesh(
             let indices = triangle_list(mode, &drawn);
             let baked = ScenePrimitive {
                 node: node.index(),
+                instance,
                 mesh: mesh.index(),
                 primitive: primitive.index(),
                 // Filled in by `finish_primitives` once the scene's origin is known.

@@ -212,7 +212,8 @@ pub fn bake_scene(
 fn existing_uv1(scene: &Scene, meshes: &[unwrap::MeshInput], options: &unwrap::UnwrapOptions) -> Result<Atlas, String> {
     let name = |i: usize| {
         let p = &scene.primitives[i];
-        format!("mesh {} primitive {} on node {}", p.mesh, p.primitive, p.node)
+        let instance = p.instance.map(|k| format!(", instance {k}")).unwrap_or_default();
+        format!("mesh {} primitive {} on node {}{instance}", p.mesh, p.primitive, p.node)
     };
     let mut uvs = Vec::new();
     for (i, p) in scene.primitives.iter().enumerate() {
@@ -387,7 +388,7 @@ fn scene_report(
     staging: &output::Staging,
 ) -> SceneReport {
     let scene = &baked.scene;
-    let keys: Vec<(usize, usize, usize)> = scene.primitives.iter().map(|p| (p.node, p.mesh, p.primitive)).collect();
+    let keys: Vec<_> = scene.primitives.iter().map(scene::ScenePrimitive::key).collect();
     let names: Vec<String> = scene
         .primitives
         .iter()
@@ -397,7 +398,8 @@ fn scene_report(
             let label = node
                 .and_then(|n| n.name().map(str::to_string))
                 .or_else(|| mesh.and_then(|m| m.name().map(str::to_string)));
-            format!("{}#{}", label.unwrap_or_else(|| format!("node{}", p.node)), p.primitive)
+            let instance = p.instance.map(|k| format!("[{k}]")).unwrap_or_default();
+            format!("{}{instance}#{}", label.unwrap_or_else(|| format!("node{}", p.node)), p.primitive)
         })
         .collect();
     let mut notices = baked.notices.clone();

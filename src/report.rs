@@ -20,13 +20,18 @@ use crate::config::Config;
 use crate::environment::EnvironmentMap;
 use crate::gpu::{AdapterDescription, Gpu};
 use crate::reference::{Reference, ReferenceOptions, ReferencePoint};
-use crate::scene::Scene;
+use crate::scene::{PrimitiveKey, Scene};
 use crate::solve::bounce::Probes;
 use crate::solve::{BounceStats, Skipped, Solution, direct::DirectStats};
 use crate::texelize::TexelSet;
 
-/// Version of the report's layout; bumped on any incompatible change.
-pub const SCHEMA_VERSION: u32 = 3;
+/// Version of the report's layout; bumped on any change to it. Version 4
+/// added a primitive's `instance`; `bake check` still reads version 3.
+pub const SCHEMA_VERSION: u32 = 4;
+
+/// The oldest version `bake check` reads: every later change only added
+/// optional fields.
+pub const OLDEST_READABLE_VERSION: u32 = 3;
 
 /// The schema `report.json` follows (also in the repository as `schema/report.schema.json`).
 pub const SCHEMA: &str = include_str!("../schema/report.schema.json");
@@ -386,8 +391,12 @@ pub struct Fixup {
 /// Energy statistics of one baked primitive's texels.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct PrimitiveEnergy {
-    /// Node, mesh and primitive index: the key `bake check` matches by.
+    /// Node, instance, mesh and primitive index: the key `bake check`
+    /// matches by. `instance` is the node's EXT_mesh_gpu_instancing instance,
+    /// absent for a node without instances (and in version 3 reports).
     pub node: usize,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub instance: Option<usize>,
     pub mesh: usize,
     pub primitive: usize,
     /// For display: the node's (or mesh's) name and the primitive index.
@@ -512,12 +521,12 @@ pub fn atlas_energy(texels: &TexelSet, solution: &Solution) -> EnergyStats {
     all.finish().0
 }
 
-/// Per-primitive energy of a solution. `keys[p]` = (node, mesh, primitive)
-/// and `names[p]` label primitive p.
+/// Per-primitive energy of a solution. `keys[p]` and `names[p]` label
+/// primitive p.
 pub fn primitive_energy(
     texels: &TexelSet,
     solution: &Solution,
-    keys: &[(usize, usize, usize)],
+    keys: &[PrimitiveKey],
     names: &[String],
 ) -> Vec<PrimitiveEnergy> {
     let mut accumulators: Vec<Accumulator> = keys.iter().map(|_| Accumulator::default()).collect();
@@ -529,9 +538,9 @@ pub fn primitive_energy(
     keys.iter()
         .zip(names)
         .zip(accumulators)
-        .map(|((&(node, mesh, primitive), name), acc)| {
+        .map(|((&PrimitiveKey { node, instance, mesh, primitive }, name), acc)| {
             let (stats, atlas_bounds) = acc.finish();
-            PrimitiveEnergy { node, mesh, primitive, name: name.clone(), atlas_bounds, stats }
+            PrimitiveEnergy { node, instance, mesh, primitive, name: name.clone(), atlas_bounds, stats }
         })
         .collect()
 }

@@ -17,6 +17,9 @@ use crate::repeats::Repeat;
 pub struct ScenePrimitive {
     /// Index of the node that draws it.
     pub node: usize,
+    /// Which of the node's EXT_mesh_gpu_instancing instances it is (each
+    /// instance is baked as a mesh of its own); `None` for a plain node.
+    pub instance: Option<usize>,
     /// Index of the glTF mesh and of the primitive within it.
     pub mesh: usize,
     pub primitive: usize,
@@ -44,7 +47,21 @@ pub struct ScenePrimitive {
     pub material: Option<usize>,
 }
 
+/// What names a baked primitive in the input: its node, the node's GPU
+/// instance where it has them, its mesh and its index in the mesh.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PrimitiveKey {
+    pub node: usize,
+    pub instance: Option<usize>,
+    pub mesh: usize,
+    pub primitive: usize,
+}
+
 impl ScenePrimitive {
+    pub fn key(&self) -> PrimitiveKey {
+        PrimitiveKey { node: self.node, instance: self.instance, mesh: self.mesh, primitive: self.primitive }
+    }
+
     /// The corners of triangle `t` wound counter-clockwise about its front
     /// side's world-space normal: the source's order, reversed under a
     /// mirroring transform.

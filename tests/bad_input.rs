@@ -319,6 +319,37 @@ fn unsupported_required_extensions_are_refused() {
 }
 
 #[test]
+fn required_extensions_bake_reads_are_accepted() {
+    // gltfpack marks KHR_mesh_quantization required; the gltf crate alone refuses it.
+    let case = Case::new();
+    let (mut json, bin) = parts();
+    let names = ["KHR_mesh_quantization", "KHR_materials_variants", "EXT_mesh_gpu_instancing"];
+    json["extensionsUsed"] = json!(names);
+    json["extensionsRequired"] = json!(names);
+    case.write("required.glb", &glb(&json, &bin));
+    let output = case.bake("required.glb");
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+}
+
+#[test]
+fn gpu_instances_with_mismatched_attributes_are_refused_naming_the_node() {
+    use bake::fixtures::{MeshData, Placement, SceneBuilder};
+    let mut scene = SceneBuilder::new();
+    let cube = scene.mesh("box", &MeshData::cuboid([1.0; 3]), None);
+    let instances = [Placement::default(), Placement::at(glam::Vec3::X * 2.0), Placement::at(glam::Vec3::X * 4.0)];
+    scene.instanced_node("boxes", cube, Placement::default(), &instances);
+    let bytes = scene.to_glb();
+    let parsed = gltf::binary::Glb::from_slice(&bytes).unwrap();
+    let (mut json, bin): (Value, Vec<u8>) =
+        (serde_json::from_slice(&parsed.json).unwrap(), parsed.bin.unwrap().into_owned());
+    let rotation = json["nodes"][0]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"]["ROTATION"].clone();
+    json["accessors"][rotation.as_u64().unwrap() as usize]["count"] = json!(2);
+    let case = Case::new();
+    case.write("boxes.glb", &glb(&json, &bin));
+    case.refused(&["boxes.glb"], "boxes.glb", "node 0 'boxes': EXT_mesh_gpu_instancing: ROTATION has 2 entries");
+}
+
+#[test]
 fn a_bad_second_input_leaves_none_of_the_first_ones_outputs() {
     let case = Case::new();
     std::fs::create_dir(case.path("out")).unwrap();

@@ -131,3 +131,72 @@ fn the_validator_finds_errors() {
     let (errors, _, messages) = validate(&broken);
     assert!(errors > 0, "{messages:?}");
 }
+
+#[test]
+fn gpu_instances_become_child_nodes_each_with_its_own_lightmap_uvs() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene = SceneBuilder::new();
+    scene.object("ground", &MeshData::plane(6.0, 6.0, 1), [0.6, 0.6, 0.6, 1.0], [0.0; 3], Placement::default());
+    let cube = scene.mesh("box", &MeshData::cuboid([0.6, 0.6, 0.6]), None);
+    let turned = glam::Quat::from_rotation_y(0.8);
+    let instances = [
+        Placement::at(glam::Vec3::new(-1.4, 0.3, 0.0)),
+        Placement::at(glam::Vec3::new(0.0, 0.3, 0.6)).rotated(turned),
+        Placement::at(glam::Vec3::new(1.5, 0.45, -0.2)).scaled(glam::Vec3::splat(1.5)),
+    ];
+    scene.instanced_node("boxes", cube, Placement::at(glam::Vec3::new(0.3, 0.0, -0.4)), &instances);
+    // An exporter without a fallback marks the extension required.
+    let glb = scene.to_glb();
+    let parsed = gltf::binary::Glb::from_slice(&glb).unwrap();
+    let mut json: serde_json::Value = serde_json::from_slice(&parsed.json).unwrap();
+    json["extensionsRequired"] = serde_json::json!(["EXT_mesh_gpu_instancing"]);
+    let bin = parsed.bin.unwrap().into_owned();
+    let input = dir.path().join("boxes.glb");
+    std::fs::write(&input, bake::export::glb::encode(&serde_json::to_vec(&json).unwrap(), &bin)).unwrap();
+    assert_valid(&input);
+
+    bake(&input, &dir.path().join("out"), &[]);
+    let output = dir.path().join("out/boxes.glb");
+    assert_valid(&output);
+    let (document, buffers, _) = gltf::import(&output).unwrap();
+    let out: serde_json::Value =
+        serde_json::from_slice(&gltf::binary::Glb::from_slice(&std::fs::read(&output).unwrap()).unwrap().json).unwrap();
+    for list in ["extensionsUsed", "extensionsRequired"] {
+        let names = out.get(list).and_then(|l| l.as_array()).cloned().unwrap_or_default();
+        assert!(!names.iter().any(|n| n == "EXT_mesh_gpu_instancing"), "{list}: {names:?}");
+    }
+    let node = &out["nodes"][1];
+    assert!(node.get("mesh").is_none() && node.get("extensions").is_none(), "{node}");
+    let parent = document.nodes().nth(1).unwrap().transform().decomposed().0;
+    assert!(parent.iter().zip([0.3, 0.0, -0.4]).all(|(a, b)| (a - b).abs() < 1e-6), "the node keeps its place");
+    let children: Vec<usize> =
+        node["children"].as_array().unwrap().iter().map(|c| c.as_u64().unwrap() as usize).collect();
+    assert_eq!(children.len(), 3);
+    let mut uv_sets = Vec::new();
+    for (k, (&child, instance)) in children.iter().zip(&instances).enumerate() {
+        let child_json = &out["nodes"][child];
+        let child = document.nodes().nth(child).unwrap();
+        let (t, r, s) = child.transform().decomposed();
+        let close = |a: &[f32], b: &[f32]| a.iter().zip(b).all(|(a, b)| (a - b).abs() < 1e-6);
+        assert!(close(&t, &instance.translation.to_array()), "instance {k}: translation {t:?}");
+        assert!(close(&r, &instance.rotation.to_array()), "instance {k}: rotation {r:?}");
+        assert!(close(&s, &instance.scale.to_array()), "instance {k}: scale {s:?}");
+        assert_eq!(child_json["extras"]["EXT_mesh_gpu_instancing"]["_ID"], k, "the custom attribute is kept");
+        let primitive = child.mesh().expect("each instance draws a mesh").primitives().next().unwrap();
+        let reader = primitive.reader(|b| Some(&buffers[b.index()]));
+        let uv: Vec<[f32; 2]> = reader.read_tex_coords(1).expect("lightmap UVs").into_f32().collect();
+        uv_sets.push((child.mesh().unwrap().index(), uv));
+    }
+    for (i, (mesh_i, uv_i)) in uv_sets.iter().enumerate() {
+        for (mesh_j, uv_j) in &uv_sets[i + 1..] {
+            assert_ne!(mesh_i, mesh_j, "instances share a mesh");
+            assert_ne!(uv_i, uv_j, "instances share lightmap UVs");
+        }
+    }
+    let report: bake::report::Report =
+        serde_json::from_slice(&std::fs::read(dir.path().join("out/report.json")).unwrap()).unwrap();
+    let energy = &report.scenes[0].energy;
+    let instances: Vec<Option<usize>> = energy.iter().filter(|e| e.node == 1).map(|e| e.instance).collect();
+    assert_eq!(instances, [Some(0), Some(1), Some(2)]);
+    assert!(energy.iter().filter(|e| e.node == 1).all(|e| e.stats.texels > 0 && e.name.starts_with("boxes[")));
+}

@@ -7,7 +7,8 @@
 //! (a skinned node, a node of another scene) keeps its primitives and
 //! accessors, and each baked node that draws it gets a copy. A mesh drawn by
 //! several baked nodes is copied too, so that each node gets its own
-//! lightmap region. An input TEXCOORD_1 that the lightmap UVs replace moves
+//! lightmap region, and so is the mesh of each GPU instance, which becomes
+//! a child node of its own (EXT_mesh_gpu_instancing shares one set of UVs). An input TEXCOORD_1 that the lightmap UVs replace moves
 //! to the first free TEXCOORD_n, so no vertex data is lost.
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -16,6 +17,7 @@ use anyhow::{Context, Result, anyhow, bail};
 use serde_json::{Value, json};
 
 use super::document::Document;
+use crate::asset::instancing::{self, Instances};
 use crate::asset::{SourceAsset, accessor};
 use crate::scene::Scene;
 use crate::unwrap::{Atlas, UnwrappedMesh};
@@ -51,7 +53,7 @@ pub fn rewrite(
     if atlas.meshes.len() != scene.primitives.len() {
         bail!("the atlas has {} meshes for {} primitives", atlas.meshes.len(), scene.primitives.len());
     }
-    let mesh_of_node = output_meshes(document, scene);
+    let mesh_of = output_meshes(document, scene)?;
     let source = &scene.source;
     let mut notices = BTreeSet::new();
     let mut rewritten = Vec::new();
@@ -102,7 +104,7 @@ pub fn rewrite(
         }
         let indices = push_indices(document, unwrapped);
 
-        let mesh = mesh_of_node[&primitive.node];
+        let mesh = mesh_of[&(primitive.node, primitive.instance)];
         let out = &mut document.json["meshes"][mesh]["primitives"][primitive.primitive];
         if !out.is_object() {
             bail!("{what}: not found in the output document");
@@ -118,11 +120,13 @@ pub fn rewrite(
     Ok((rewritten, notices.into_iter().collect()))
 }
 
-/// Which output mesh each baked node draws. A mesh keeps its index for the
-/// first baked node that draws it, unless a node that is not baked draws it
-/// too; every other baked node gets a copy (appended to `meshes`, the node
-/// pointed at it).
-fn output_meshes(document: &mut Document, scene: &Scene) -> BTreeMap<usize, usize> {
+/// Which output mesh each baked node (or GPU instance) draws. A mesh keeps
+/// its index for the first baked node that draws it, unless a node that is
+/// not baked draws it too; every other baked node gets a copy (appended to
+/// `meshes`, the node pointed at it). Each instance of an instanced node
+/// becomes a child node drawing a mesh of its own; the node keeps its
+/// transform and children but draws nothing itself.
+fn output_meshes(document: &mut Document, scene: &Scene) -> Result<BTreeMap<(usize, Option<usize>), usize>> {
     let baked_nodes: BTreeSet<usize> = scene.primitives.iter().map(|p| p.node).collect();
     let nodes = document.json.get("nodes").and_then(Value::as_array).cloned().unwrap_or_default();
     let drawn_by_others: BTreeSet<usize> = nodes
@@ -131,10 +135,18 @@ fn output_meshes(document: &mut Document, scene: &Scene) -> BTreeMap<usize, usiz
         .filter(|(i, _)| !baked_nodes.contains(i))
         .filter_map(|(_, node)| node.get("mesh").and_then(Value::as_u64).map(|m| m as usize))
         .collect();
-    let mut mesh_of_node = BTreeMap::new();
+    let node_name = |node: usize| {
+        nodes[node]
+            .get("name")
+            .and_then(Value::as_str)
+            .map_or_else(|| format!("node {node}"), |n| format!("node '{n}'"))
+    };
+    let mut mesh_of = BTreeMap::new();
     let mut claimed = BTreeSet::new();
+    let mut instanced = BTreeMap::new();
     for primitive in &scene.primitives {
-        if mesh_of_node.contains_key(&primitive.node) {
+        let key = (primitive.node, primitive.instance);
+        if mesh_of.contains_key(&key) {
             continue;
         }
         let mesh = primitive.mesh;
@@ -143,18 +155,70 @@ fn output_meshes(document: &mut Document, scene: &Scene) -> BTreeMap<usize, usiz
         } else {
             let mut copy = scene.source.json["meshes"][mesh].clone();
             let name = copy.get("name").and_then(Value::as_str).map_or_else(|| format!("mesh {mesh}"), str::to_string);
-            let node_name = nodes[primitive.node]
-                .get("name")
-                .and_then(Value::as_str)
-                .map_or_else(|| format!("node {}", primitive.node), |n| format!("node '{n}'"));
-            copy["name"] = json!(format!("{name} ({node_name})"));
-            let index = document.push("meshes", copy);
-            document.json["nodes"][primitive.node]["mesh"] = json!(index);
-            index
+            let instance = primitive.instance.map(|k| format!(", instance {k}")).unwrap_or_default();
+            copy["name"] = json!(format!("{name} ({}{instance})", node_name(primitive.node)));
+            document.push("meshes", copy)
         };
-        mesh_of_node.insert(primitive.node, target);
+        let drawer = match primitive.instance {
+            None => primitive.node,
+            Some(k) => {
+                let instances = match instanced.entry(primitive.node) {
+                    std::collections::btree_map::Entry::Occupied(e) => e.into_mut(),
+                    std::collections::btree_map::Entry::Vacant(e) => e.insert(
+                        instancing::read(&scene.source, primitive.node)?
+                            .ok_or_else(|| anyhow!("node {}: its instances are gone", primitive.node))?,
+                    ),
+                };
+                instance_node(document, primitive.node, &node_name(primitive.node), instances, k)?
+            }
+        };
+        document.json["nodes"][drawer]["mesh"] = json!(target);
+        mesh_of.insert(key, target);
     }
-    mesh_of_node
+    for &node in instanced.keys() {
+        let node = &mut document.json["nodes"][node];
+        let extensions = node.get_mut("extensions").and_then(Value::as_object_mut);
+        if let Some(extensions) = extensions {
+            extensions.remove(instancing::EXTENSION);
+            if extensions.is_empty() {
+                node.as_object_mut().map(|n| n.remove("extensions"));
+            }
+        }
+        node.as_object_mut().map(|n| n.remove("mesh"));
+    }
+    let still_instanced = document.json["nodes"].as_array().is_some_and(|nodes| {
+        nodes.iter().any(|n| n.pointer(&format!("/extensions/{}", instancing::EXTENSION)).is_some())
+    });
+    if !instanced.is_empty() && !still_instanced {
+        document.drop_extension(instancing::EXTENSION);
+    }
+    Ok(mesh_of)
+}
+
+/// Appends instance `k` of `parent` as a child node placed by the instance's
+/// transform, its custom per-instance attributes in its extras; returns it.
+fn instance_node(
+    document: &mut Document,
+    parent: usize,
+    parent_name: &str,
+    instances: &Instances,
+    k: usize,
+) -> Result<usize> {
+    let placement = instances.placements.get(k).ok_or_else(|| anyhow!("{parent_name} has no instance {k}"))?;
+    let mut node = placement.node_properties();
+    node.insert("name".into(), json!(format!("{parent_name} instance {k}")));
+    if !instances.custom.is_empty() {
+        let values: serde_json::Map<String, Value> =
+            instances.custom.iter().map(|(name, values)| (name.clone(), values[k].clone())).collect();
+        node.insert("extras".into(), json!({ instancing::EXTENSION: values }));
+    }
+    let index = document.push("nodes", Value::Object(node));
+    let children = &mut document.json["nodes"][parent]["children"];
+    if !children.is_array() {
+        *children = json!([]);
+    }
+    children.as_array_mut().unwrap().push(json!(index));
+    Ok(index)
 }
 
 /// The unwrapped triangle list as 16-bit indices where they fit, else 32-bit.

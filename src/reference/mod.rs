@@ -648,6 +648,7 @@ mod tests {
     fn primitive(uv0: Option<Vec<[f32; 2]>>, uv1: Option<Vec<[f32; 2]>>) -> ScenePrimitive {
         ScenePrimitive {
             node: 0,
+            instance: None,
             mesh: 0,
             primitive: 0,
             positions: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 1.0]],
