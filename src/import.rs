@@ -84,6 +84,23 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
             ));
         }
     }
+    for &m in &used {
+        let material = document.materials().nth(m).expect("a used material exists");
+        let textures = [
+            ("base colour", material.pbr_metallic_roughness().base_color_texture()),
+            ("emissive", material.emissive_texture()),
+        ];
+        for (kind, info) in textures.into_iter().filter_map(|(kind, info)| Some((kind, info?))) {
+            if info.texture().source().is_none() {
+                notices.push(format!(
+                    "material {m} '{}': its {kind} texture {} has only an extension's image (KHR_texture_basisu), \
+                     which bake cannot decode: baked with its colour factors alone",
+                    material.name().unwrap_or("unnamed"),
+                    info.texture().index()
+                ));
+            }
+        }
+    }
     let (images, image_notices) = decode_images(&source, &materials, &used);
     notices.extend(image_notices);
     let lights = source.json.pointer("/extensions/KHR_lights_punctual/lights").and_then(|l| l.as_array());
@@ -275,9 +292,9 @@ fn material(m: gltf::Material) -> Material {
     Material {
         name: m.name().map(str::to_string),
         base_color: m.pbr_metallic_roughness().base_color_factor(),
-        base_color_texture: m.pbr_metallic_roughness().base_color_texture().map(|info| texture_ref(&info)),
+        base_color_texture: m.pbr_metallic_roughness().base_color_texture().and_then(|info| texture_ref(&info)),
         emission: m.emissive_factor().map(|e| e * strength),
-        emissive_texture: m.emissive_texture().map(|info| texture_ref(&info)),
+        emissive_texture: m.emissive_texture().and_then(|info| texture_ref(&info)),
         alpha: match m.alpha_mode() {
             gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
             gltf::material::AlphaMode::Mask => AlphaMode::Mask(m.alpha_cutoff().unwrap_or(0.5)),
@@ -289,8 +306,10 @@ fn material(m: gltf::Material) -> Material {
 
 /// A texture reference with KHR_texture_transform folded into one affine map:
 /// uv' = T · R · S · uv (the extension's order), R turning by `rotation`
-/// as the extension's reference code does.
-fn texture_ref(info: &gltf::texture::Info) -> TextureRef {
+/// as the extension's reference code does. `None` for a texture with no
+/// image but an extension's (a KTX2 of KHR_texture_basisu without a PNG or
+/// JPEG fallback), which bake cannot decode.
+fn texture_ref(info: &gltf::texture::Info) -> Option<TextureRef> {
     let sampler = info.texture().sampler();
     let wrap = [sampler.wrap_s().as_gl_enum(), sampler.wrap_t().as_gl_enum()];
     let mut tex_coord = info.tex_coord();
@@ -304,7 +323,7 @@ fn texture_ref(info: &gltf::texture::Info) -> TextureRef {
             tex_coord = set;
         }
     }
-    TextureRef { image: info.texture().source().index(), tex_coord, transform, wrap }
+    Some(TextureRef { image: info.texture().source()?.index(), tex_coord, transform, wrap })
 }
 
 /// Decodes every image a baked primitive's material samples, into linear

@@ -321,14 +321,21 @@ fn unsupported_required_extensions_are_refused() {
 #[test]
 fn required_extensions_bake_reads_are_accepted() {
     // gltfpack marks KHR_mesh_quantization required; the gltf crate alone refuses it.
+    // A KTX2 texture without a fallback image has no `source`, which the
+    // gltf crate alone also refuses.
     let case = Case::new();
     let (mut json, bin) = parts();
-    let names = ["KHR_mesh_quantization", "KHR_materials_variants", "EXT_mesh_gpu_instancing"];
+    let names = ["KHR_mesh_quantization", "KHR_materials_variants", "EXT_mesh_gpu_instancing", "KHR_texture_basisu"];
     json["extensionsUsed"] = json!(names);
     json["extensionsRequired"] = json!(names);
+    json["images"] = json!([{ "uri": "data:image/ktx2;base64,q0tUWCAyMLsNChoK" }]);
+    json["textures"] = json!([{ "extensions": { "KHR_texture_basisu": { "source": 0 } } }]);
+    json["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] = json!({ "index": 0 });
     case.write("required.glb", &glb(&json, &bin));
     let output = case.bake("required.glb");
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let notices = &report(&case).scenes[0].notices;
+    assert!(notices.iter().any(|n| n.contains("only an extension's image (KHR_texture_basisu)")), "{notices:?}");
 }
 
 #[test]

@@ -63,7 +63,7 @@ fn bakes_a_fixture_into_a_lightmapped_glb() {
             assert!(material.unlit(), "mesh {} is not shown baked", mesh.index());
             let texture = material.pbr_metallic_roughness().base_color_texture().expect("baked texture");
             assert_eq!(texture.tex_coord(), 1);
-            match texture.texture().source().source() {
+            match texture.texture().source().expect("an image").source() {
                 gltf::image::Source::View { mime_type, .. } => assert_eq!(mime_type, "image/png"),
                 gltf::image::Source::Uri { .. } => panic!("the lightmap must be embedded"),
             }
