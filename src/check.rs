@@ -490,13 +490,19 @@ pub struct Balance {
 /// included, by a geometric series). So P_bounce/P_sent is a weighted mean of
 /// the two closures and must lie between them (± `BALANCE_SLACK`). Without a
 /// bounce pass nothing bounced: P_bounce must be 0. A bounce pass that lost
-/// the emitters' light, or created light, breaks it.
+/// the emitters' light, or created light, breaks it. The contact fix-up
+/// replaces the passes' light near contacts by traced light, no share of the
+/// shots: P_bounce and P_refl leave out what it changed (`contact`).
 pub fn energy_balance(scene: &SceneReport) -> Result<Balance, String> {
     let a = &scene.atlas.energy;
     let received = luminance(a.power_received);
     let direct = scene.direct.as_ref().map_or(0.0, |d| luminance(d.power_received));
-    let sent = luminance(a.power_emitted) + luminance(a.power_reflected);
-    let bounced = received - direct;
+    let (received_change, reflected_change) = scene
+        .contact
+        .as_ref()
+        .map_or((0.0, 0.0), |c| (luminance(c.power_received_change), luminance(c.power_reflected_change)));
+    let sent = luminance(a.power_emitted) + luminance(a.power_reflected) - reflected_change;
+    let bounced = received - direct - received_change;
     let closure = if sent > 0.0 { bounced / sent } else { 0.0 };
     let expected = match &scene.bounce {
         Some(b) => (b.closure.min(b.shot_closure), b.closure.max(b.shot_closure)),

@@ -367,6 +367,15 @@ impl SceneBuilder {
         self.meshes.len() - 1
     }
 
+    /// Gives every primitive of `mesh` the vertex colours `colors` (COLOR_0,
+    /// float RGB, one per vertex).
+    pub fn vertex_colors(&mut self, mesh: usize, colors: &[[f32; 3]]) {
+        let accessor = self.push_floats(colors, "VEC3", false);
+        for primitive in self.meshes[mesh]["primitives"].as_array_mut().expect("primitives") {
+            primitive["attributes"]["COLOR_0"] = json!(accessor);
+        }
+    }
+
     /// Adds a root node drawing `mesh` at `placement`.
     pub fn node(&mut self, name: &str, mesh: usize, placement: Placement) -> usize {
         let mut node = json!({ "name": name, "mesh": mesh });

@@ -238,6 +238,20 @@ fn collect_mesh(
                 }
                 None => None,
             };
+            let colors = match primitive.get(&gltf::Semantic::Colors(0)) {
+                Some(a) => {
+                    let width = a.dimensions().multiplicity();
+                    if !matches!(width, 3 | 4) {
+                        bail!("COLOR_0 has {width} components (VEC3 or VEC4 expected)");
+                    }
+                    let values = accessor::read_floats(source, &a).context("COLOR_0")?;
+                    if values.len() != count * width {
+                        bail!("COLOR_0 has {} entries for {count} positions", values.len() / width);
+                    }
+                    Some(values.chunks_exact(width).map(|c| [c[0], c[1], c[2]]).collect())
+                }
+                None => None,
+            };
             let drawn = match primitive.indices() {
                 Some(a) => accessor::read_indices(source, &a)?,
                 None => (0..count as u32).collect(),
@@ -257,6 +271,7 @@ fn collect_mesh(
                 normals,
                 uv0,
                 uv1,
+                colors,
                 indices,
                 mirrored,
                 material: primitive.material().index(),

@@ -473,6 +473,7 @@ fn scene_report(
         },
         direct: baked.solution.direct.clone(),
         bounce: baked.solution.bounce.clone(),
+        contact: baked.solution.contact.clone(),
         energy: report::primitive_energy(&baked.texels, &baked.solution, &keys, &names),
         reference: baked.reference.clone(),
     }

@@ -22,11 +22,12 @@ use crate::gpu::{AdapterDescription, Gpu};
 use crate::reference::{Reference, ReferenceOptions, ReferencePoint};
 use crate::scene::{PrimitiveKey, Scene};
 use crate::solve::bounce::Probes;
-use crate::solve::{BounceStats, Skipped, Solution, direct::DirectStats};
+use crate::solve::{BounceStats, ContactStats, Skipped, Solution, direct::DirectStats};
 use crate::texelize::TexelSet;
 
 /// Version of the report's layout; bumped on any change to it. Version 4
-/// added a primitive's `instance`; `bake check` still reads version 3.
+/// added a primitive's `instance` and the scene's `contact`; `bake check`
+/// still reads version 3.
 pub const SCHEMA_VERSION: u32 = 4;
 
 /// The oldest version `bake check` reads: every later change only added
@@ -194,6 +195,9 @@ pub struct SceneReport {
     /// The bounce pass: shots, why it stopped, unshot energy left and the
     /// ambient term that stands in for it, and the convergence trace.
     pub bounce: Option<BounceStats>,
+    /// The contact fix-up, when it ran (absent in version 3 reports).
+    #[serde(default)]
+    pub contact: Option<ContactStats>,
     /// Texel energy per baked primitive, in scene order.
     pub energy: Vec<PrimitiveEnergy>,
     /// `--reference`: the bake's error against the CPU reference at some texels.

@@ -34,6 +34,9 @@ pub struct ScenePrimitive {
     /// The source's own TEXCOORD_1, if present (textures may sample it; the
     /// lightmap UVs replace it in the output).
     pub uv1: Option<Vec<[f32; 2]>>,
+    /// COLOR_0's RGB (linear, as glTF stores it), one per source vertex, if
+    /// present: it multiplies the base colour (its alpha is not read).
+    pub colors: Option<Vec<[f32; 3]>>,
     /// Triangle list in source vertex numbering (strips and fans converted),
     /// in the source's winding.
     pub indices: Vec<u32>,

@@ -1,8 +1,8 @@
 //! `bake check` as CI runs it, on real fixture bakes: a report passes against
 //! itself; a mesh whose energy moved by 5% fails with the mesh named; a NaN
 //! texel (in the report or in the lightmap EXR) fails with the mesh named;
-//! broken energy invariants fail; and the exit codes are the documented ones
-//! (0 pass, 1 check failed, 2 error).
+//! broken energy invariants fail; every fixture's bake keeps them; and the
+//! exit codes are the documented ones (0 pass, 1 check failed, 2 error).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -236,6 +236,24 @@ fn an_emitter_lit_room_keeps_its_energy_balance() {
     let (code, text) = check(dir.path(), &["lost.json"]);
     assert_eq!(code, Some(1), "{text}");
     assert!(text.contains("emitted power not accounted for"), "{text}");
+}
+
+#[test]
+fn every_fixture_keeps_the_invariants_as_the_ci_example_bakes_it() {
+    // pipeline/ci-example.yml's options, the contact fix-up on: the crates
+    // and the ball of `everything` and `corner` touch the ground, where the
+    // fix-up traces light no shot of the bounce pass carried.
+    let dir = tempfile::tempdir().unwrap();
+    let env = fixture("sky_sun.exr");
+    for scene in ["corner.glb", "everything.glb", "sphere.glb", "sphere_on_ground.glb"] {
+        let out = format!("out-{scene}");
+        let input = fixture(scene);
+        let args = [input.to_str().unwrap(), "--env", env.to_str().unwrap(), "-o", &out, "-q"];
+        let output = run(dir.path(), &[&args[..], &["--max-atlas-size", "128", "--lights", "256"]].concat());
+        assert!(output.status.success(), "{scene}: {}", String::from_utf8_lossy(&output.stderr));
+        let (code, text) = check(dir.path(), &[&format!("{out}/report.json")]);
+        assert_eq!(code, Some(0), "{scene}: {text}");
+    }
 }
 
 #[test]

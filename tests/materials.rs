@@ -1,7 +1,7 @@
 //! Materials as the bake sees them: base colour and emissive textures through
 //! TEXCOORD_0 (sRGB decoded to linear, KHR_texture_transform applied, each
-//! lightmap texel averaging its footprint), and alpha cut-outs that let
-//! light through.
+//! lightmap texel averaging its footprint), vertex colours multiplying the
+//! base colour, and alpha cut-outs that let light through.
 
 mod common;
 
@@ -172,4 +172,69 @@ fn alpha_cut_out_lets_sunlight_through_the_holes() {
     eprintln!("ground under the solid half {under_solid:.3}, under the holes {under_holes:.3}, in the open {open:.3}");
     assert!(under_solid < 0.1 * open, "the solid half casts a shadow");
     assert!(under_holes > 0.9 * open, "the cut-out half lets the sun through");
+}
+
+#[test]
+fn vertex_colours_multiply_the_base_colour_where_each_texel_lies() {
+    // The quad runs x from −1 to 1; COLOR_0 ramps linearly from 0.2 to 1
+    // (red), stays 0.5 (green) and is 1 (blue) at every vertex.
+    let plane = MeshData::plane(2.0, 2.0, 2);
+    let colors: Vec<[f32; 3]> = plane.positions.iter().map(|p| [0.6 + 0.4 * p[0], 0.5, 1.0]).collect();
+    let mut builder = SceneBuilder::new();
+    let material = builder.material("quad", [0.8, 0.8, 0.8, 1.0], [0.0; 3]);
+    let mesh = builder.mesh("quad", &plane, Some(material));
+    builder.vertex_colors(mesh, &colors);
+    builder.node("quad", mesh, Placement::default());
+    let texels = albedos(&builder);
+    assert!(texels.len() > 100);
+    for (p, albedo, _) in texels {
+        let expected = [0.8 * (0.6 + 0.4 * p.x), 0.4, 0.8];
+        for c in 0..3 {
+            assert!(
+                (albedo[c] - expected[c]).abs() < 2e-3,
+                "at x = {:.3}: albedo {albedo:?}, expected {expected:?}",
+                p.x
+            );
+        }
+    }
+}
+
+#[test]
+fn vertex_coloured_closed_room_reaches_le_over_one_minus_rho_and_bakes_its_texture_without_them() {
+    // Every wall emits Le and reflects ρ = base colour 0.8 × COLOR_0
+    // (0.625, 0.3125, 0.9375) = (0.5, 0.25, 0.75): L_lm = Le/(1 − ρ) per
+    // channel, (2, 1.333, 4) × Le. The baked texture is multiplied by
+    // COLOR_0 again in a viewer, so it holds 0.8 · L_lm + Le / COLOR_0.
+    let gpu = common::gpu();
+    let le = 0.25f32;
+    let tint = [0.625f32, 0.3125, 0.9375];
+    let room = MeshData::room([2.0, 2.0, 2.0]);
+    let mut builder = SceneBuilder::new();
+    let material = builder.material("room", [0.8, 0.8, 0.8, 1.0], [le; 3]);
+    let mesh = builder.mesh("room", &room, Some(material));
+    builder.vertex_colors(mesh, &vec![tint; room.positions.len()]);
+    builder.node("room", mesh, Placement::default());
+    let scene = common::scene(&builder, "room");
+    let baked = bake::bake_scene(&gpu, scene, None, &common::options(64), &mut bake::progress::Silent).unwrap();
+    common::assert_valid(&baked);
+    let (mut sum, mut area) = ([0.0f64; 3], 0.0f64);
+    for (t, v) in baked.texels.texels.iter().zip(&baked.solution.lightmap) {
+        for c in 0..3 {
+            sum[c] += v[c] as f64 * t.area as f64;
+        }
+        area += t.area as f64;
+    }
+    let expected = tint.map(|t| le as f64 / (1.0 - 0.8 * t as f64));
+    for c in 0..3 {
+        let mean = sum[c] / area;
+        eprintln!("channel {c}: mean L_lm {mean:.4}, expected {:.4}", expected[c]);
+        assert!((mean / expected[c] - 1.0).abs() < 0.03, "channel {c}: {mean:.4} against {:.4}", expected[c]);
+    }
+    let (_, beauty, _) = bake::export::lightmap::images(&baked.texels, &baked.solution, 0, &[]);
+    let (t, l) = baked.texels.texels.iter().zip(&baked.solution.lightmap).find(|(t, _)| t.area > 0.0).unwrap();
+    let stored = beauty.pixels[t.index as usize];
+    for c in 0..3 {
+        let expected = 0.8 * l[c] + le / tint[c];
+        assert!((stored[c] / expected - 1.0).abs() < 1e-4, "channel {c}: texture {} against {expected}", stored[c]);
+    }
 }

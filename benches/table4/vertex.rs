@@ -140,7 +140,7 @@ fn vertex_points(scene: &Scene) -> (TexelSet, Vec<usize>) {
             });
         }
     }
-    (TexelSet { width: points.len() as u32, height: 1, texels: points }, first)
+    (TexelSet { width: points.len() as u32, height: 1, texels: points, tint: Vec::new() }, first)
 }
 
 /// The vertices' irradiance interpolated to `texel`'s position across its

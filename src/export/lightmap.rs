@@ -208,10 +208,17 @@ pub fn linear_to_srgb8(linear: f32) -> u8 {
 /// along `seams`; with what dilation and stitching did.
 pub fn images(texels: &TexelSet, solution: &Solution, rings: u32, seams: &[SeamEdge]) -> (Image, Image, Fixups) {
     let mut lightmap = Image::from_texels(texels, |i| solution.lightmap[i]);
+    // A viewer multiplies the baked texture by the primitive's COLOR_0 as it
+    // would the base colour, so the texture holds the albedo without it (and
+    // the emission divided by it, where it is not near black).
     let mut beauty = Image::from_texels(texels, |i| {
         let t = &texels.texels[i];
         let l = solution.lightmap[i];
-        [0, 1, 2].map(|c| t.albedo[c] * l[c] + t.emission[c])
+        let tint = texels.tint.get(i).copied().unwrap_or([1.0; 3]);
+        [0, 1, 2].map(|c| {
+            let shown = tint[c].max(1.0 / 255.0);
+            t.albedo[c] / shown * l[c] + t.emission[c] / shown
+        })
     });
     let dilated = lightmap.dilate(rings);
     beauty.dilate(rings);

@@ -26,8 +26,9 @@ pub(crate) struct Triangle {
     pub material: u32,
     /// Index into `Scene::primitives`.
     pub primitive: u32,
-    /// Index into the reference's per-triangle texture coordinates, or
-    /// [`NO_TEXCOORDS`] where the material samples no texture.
+    /// Index into the reference's per-triangle texture coordinates and
+    /// vertex colours, or [`NO_TEXCOORDS`] where the material samples no
+    /// texture and the primitive has no COLOR_0.
     pub texcoords: u32,
 }
 

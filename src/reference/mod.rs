@@ -269,6 +269,17 @@ fn triangle_texcoords(p: &ScenePrimitive, t: usize) -> TriangleTexcoords {
     })
 }
 
+/// COLOR_0 at triangle `t`'s corners of `p` (source order), clamped to
+/// [0, 1] as the bake's texelize pass does; white where the primitive has
+/// none (or one of another length).
+fn triangle_colors(p: &ScenePrimitive, t: usize) -> [DVec3; 3] {
+    let corners = [0, 1, 2].map(|k| p.indices[3 * t + k] as usize);
+    match p.colors.as_ref().filter(|c| c.len() == p.positions.len()) {
+        Some(c) => corners.map(|i| DVec3::from_array(c[i].map(f64::from)).clamp(DVec3::ZERO, DVec3::ONE)),
+        None => [DVec3::ONE; 3],
+    }
+}
+
 /// A scene prepared for reference estimates: a BVH over all its triangles
 /// (f64, per-triangle material and normals), the textures and UV sets its
 /// materials sample, and the environment's sampling tables. Build once,
@@ -278,8 +289,12 @@ pub struct Reference {
     materials: Vec<SurfaceMaterial>,
     /// The decoded images the materials sample, each once.
     images: Vec<LinearImage>,
-    /// UV sets of the triangles whose material is textured (`Triangle::texcoords`).
+    /// UV sets of the triangles whose material is textured or whose
+    /// primitive has vertex colours (`Triangle::texcoords`).
     texcoords: Vec<TriangleTexcoords>,
+    /// COLOR_0 (RGB clamped to [0, 1], white where absent) at the same
+    /// triangles' corners, same index.
+    colors: Vec<[DVec3; 3]>,
     env: Option<EnvSampler>,
     /// Largest absolute vertex coordinate, metres (1 for an empty scene).
     scale: f64,
@@ -373,12 +388,15 @@ impl Reference {
             .map(|m| SurfaceMaterial::new(m, &image_slots))
             .collect();
         let mut texcoords = Vec::new();
+        let mut colors = Vec::new();
         let triangles: Vec<Triangle> = scene_triangles(scene)
             .into_iter()
             .map(|(pi, t, mut tri)| {
-                if materials[tri.material as usize].is_textured() {
+                let primitive = &scene.primitives[pi];
+                if materials[tri.material as usize].is_textured() || primitive.colors.is_some() {
                     tri.texcoords = texcoords.len() as u32;
-                    texcoords.push(triangle_texcoords(&scene.primitives[pi], t));
+                    texcoords.push(triangle_texcoords(primitive, t));
+                    colors.push(triangle_colors(primitive, t));
                 }
                 tri
             })
@@ -397,6 +415,7 @@ impl Reference {
             materials,
             images,
             texcoords,
+            colors,
             env,
             scale,
             surface_offset: 1e-9 * scale,
@@ -420,13 +439,15 @@ impl Reference {
     /// The albedo and emission of `tri` at barycentrics (u, v).
     fn surface_at(&self, tri: &Triangle, u: f64, v: f64) -> SurfaceSample {
         let m = &self.materials[tri.material as usize];
-        if !m.is_textured() {
+        let Some(&[ca, cb, cc]) = self.colors.get(tri.texcoords as usize) else {
             return SurfaceSample { albedo: clamp_albedo(m.base_color), emission: clamp_emission(m.emission) };
-        }
+        };
         let uv = self.texcoords_at(tri, u, v);
         let rgb = |t: &Option<Texture>| t.as_ref().map_or(DVec3::ONE, |t| t.sample(&self.images, uv).truncate());
+        // glTF: base colour = factor · texture · COLOR_0.
+        let tint = ca * (1.0 - u - v) + cb * u + cc * v;
         SurfaceSample {
-            albedo: clamp_albedo(m.base_color * rgb(&m.base_texture)),
+            albedo: clamp_albedo(m.base_color * rgb(&m.base_texture) * tint),
             emission: clamp_emission(m.emission * rgb(&m.emissive_texture)),
         }
     }
@@ -655,6 +676,7 @@ mod tests {
             normals: None,
             uv0,
             uv1,
+            colors: None,
             indices: vec![0, 1, 2, 2, 1, 3],
             repeats: Vec::new(),
             mirrored: false,

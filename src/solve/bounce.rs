@@ -353,6 +353,7 @@ pub fn run(
     let gpu_texels = texels;
     let weighted = shares.map(|shares| TexelSet {
         texels: texels.texels.iter().zip(shares).map(|(t, s)| Texel { area: t.area * s, ..*t }).collect(),
+        tint: Vec::new(),
         ..*texels
     });
     let texels = weighted.as_ref().unwrap_or(texels);

@@ -78,7 +78,7 @@ const LIFT_TEXELS: f64 = 0.05;
 const MIN_LIFT_TEXELS: f64 = 1e-3;
 
 /// What the fix-up did.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ContactStats {
     /// Texels whose bounced light was gathered along rays.
     pub gathered: usize,
@@ -87,6 +87,13 @@ pub struct ContactStats {
     /// Rounds of the gather until it settled.
     pub rounds: usize,
     pub seconds: f64,
+    /// Received power the fix-up added (negative: took away), Σ ΔE·A per
+    /// channel in irradiance × m²: the texels' light after it less what the
+    /// GPU passes gave them. It is no share of the bounce pass's shots, so
+    /// the energy balance leaves it out.
+    pub power_received_change: [f64; 3],
+    /// The reflected power that change adds, Σ ρ·ΔE·A per channel.
+    pub power_reflected_change: [f64; 3],
 }
 
 /// Replaces the light of texels in contact with another surface by light
@@ -175,6 +182,14 @@ pub fn fix(
         stats.rounds = round;
         if change <= SETTLED * peak {
             break;
+        }
+    }
+    for (contact, before) in contacts.iter().zip(&before) {
+        let t = &texels.texels[contact.texel];
+        for c in 0..3 {
+            let change = std::f64::consts::PI * t.area as f64 * (lightmap[contact.texel][c] - before[c]) as f64;
+            stats.power_received_change[c] += change;
+            stats.power_reflected_change[c] += t.albedo[c] as f64 * change;
         }
     }
     stats.seconds = start.elapsed().as_secs_f64();

@@ -543,7 +543,7 @@ mod tests {
                 });
             }
         }
-        TexelSet { width: 8, height: 8, texels }
+        TexelSet { width: 8, height: 8, texels, tint: Vec::new() }
     }
 
     #[test]

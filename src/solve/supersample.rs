@@ -161,7 +161,7 @@ pub fn plan(occluders: &Occluders, texels: &TexelSet, irradiance: &[[f32; 3]]) -
         samples.extend(subs);
     }
     (count > 0).then_some(Plan {
-        samples: TexelSet { width: texels.width, height: texels.height, texels: samples },
+        samples: TexelSet { width: texels.width, height: texels.height, texels: samples, tint: Vec::new() },
         owner,
         texels: count,
     })

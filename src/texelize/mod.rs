@@ -67,6 +67,9 @@ pub struct TexelSet {
     pub height: u32,
     /// Covered texels in row-major atlas order.
     pub texels: Vec<Texel>,
+    /// Per texel, the vertex colour (COLOR_0, clamped to [0, 1]) its albedo
+    /// was multiplied by; empty when no primitive has one (all white).
+    pub tint: Vec<[f32; 3]>,
 }
 
 impl TexelSet {
@@ -110,6 +113,9 @@ struct Mesh {
     area_ratio: Vec<f32>,
     triangle_primitive: Vec<u32>,
     triangle_chart: Vec<u32>,
+    /// COLOR_0 at each triangle's three corners (white where a primitive
+    /// has none); empty when no primitive has one.
+    triangle_colors: Vec<[[f32; 3]; 3]>,
 }
 
 fn flatten(scene: &Scene, atlas: &Atlas) -> Mesh {
@@ -121,7 +127,9 @@ fn flatten(scene: &Scene, atlas: &Atlas) -> Mesh {
         area_ratio: Vec::new(),
         triangle_primitive: Vec::new(),
         triangle_chart: Vec::new(),
+        triangle_colors: Vec::new(),
     };
+    let coloured = scene.primitives.iter().any(|p| p.colors.is_some());
     let default_material = scene.materials.len() as u32;
     for (p, (primitive, unwrapped)) in scene.primitives.iter().zip(&atlas.meshes).enumerate() {
         let base = mesh.vertices.len() as u32;
@@ -175,6 +183,11 @@ fn flatten(scene: &Scene, atlas: &Atlas) -> Mesh {
             });
             mesh.triangle_primitive.push(p as u32);
             mesh.triangle_chart.push(unwrapped.vertices[corner[0] as usize].chart);
+            if coloured {
+                let source = |k: usize| unwrapped.vertices[corner[k] as usize].xref as usize;
+                let color = |k: usize| primitive.colors.as_ref().map_or([1.0; 3], |c| c[source(k)]);
+                mesh.triangle_colors.push([0, 1, 2].map(color));
+            }
         }
     }
     mesh
@@ -202,5 +215,44 @@ pub fn run(gpu: &Gpu, scene: &Scene, atlas: &Atlas) -> Result<TexelSet> {
         texel.chart = mesh.triangle_chart[texel.triangle as usize];
     }
     gpu.check("texelize")?;
-    Ok(TexelSet { width: atlas.width, height: atlas.height, texels })
+    let tint = tint_by_vertex_colors(&mesh, &mut texels);
+    Ok(TexelSet { width: atlas.width, height: atlas.height, texels, tint })
+}
+
+/// Multiplies each texel's albedo by COLOR_0 interpolated at its position
+/// (glTF: base colour = factor · texture · COLOR_0) and returns the factors.
+fn tint_by_vertex_colors(mesh: &Mesh, texels: &mut [Texel]) -> Vec<[f32; 3]> {
+    if mesh.triangle_colors.is_empty() {
+        return Vec::new();
+    }
+    texels
+        .iter_mut()
+        .map(|texel| {
+            let t = texel.triangle as usize;
+            let corners = mesh.triangles[t].corners.map(|v| Vec3::from(mesh.vertices[v as usize].position));
+            let w = barycentric(texel.position(), corners);
+            let colors = mesh.triangle_colors[t].map(Vec3::from);
+            let tint = (w[0] * colors[0] + w[1] * colors[1] + w[2] * colors[2]).clamp(Vec3::ZERO, Vec3::ONE);
+            let tint = if tint.is_finite() { tint } else { Vec3::ONE };
+            texel.albedo = (Vec3::from(texel.albedo) * tint).to_array();
+            tint.to_array()
+        })
+        .collect()
+}
+
+/// Barycentric weights of `p` (a point on the triangle's plane) in triangle
+/// `[a, b, c]`, clamped to the triangle; a third each for a degenerate one.
+fn barycentric(p: Vec3, [a, b, c]: [Vec3; 3]) -> [f32; 3] {
+    let (e1, e2, d) = (b - a, c - a, p - a);
+    let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let det = d11 * d22 - d12 * d12;
+    if det <= f32::EPSILON * d11 * d22 || det <= 0.0 {
+        return [1.0 / 3.0; 3];
+    }
+    let (d1, d2) = (d.dot(e1), d.dot(e2));
+    let v = ((d22 * d1 - d12 * d2) / det).max(0.0);
+    let w = ((d11 * d2 - d12 * d1) / det).max(0.0);
+    let u = (1.0 - v - w).max(0.0);
+    let sum = u + v + w;
+    [u / sum, v / sum, w / sum]
 }
