@@ -76,31 +76,7 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
     let mut used: Vec<usize> = primitives.iter().filter_map(|p| p.material).collect();
     used.sort();
     used.dedup();
-    for &m in &used {
-        if materials[m].alpha == AlphaMode::Blend {
-            let name = materials[m].name.as_deref().unwrap_or("unnamed");
-            notices.push(format!(
-                "material {m} '{name}' is alpha-blended: baked as opaque (only MASK cut-outs let light through)"
-            ));
-        }
-    }
-    for &m in &used {
-        let material = document.materials().nth(m).expect("a used material exists");
-        let textures = [
-            ("base colour", material.pbr_metallic_roughness().base_color_texture()),
-            ("emissive", material.emissive_texture()),
-        ];
-        for (kind, info) in textures.into_iter().filter_map(|(kind, info)| Some((kind, info?))) {
-            if info.texture().source().is_none() {
-                notices.push(format!(
-                    "material {m} '{}': its {kind} texture {} has only an extension's image (KHR_texture_basisu), \
-                     which bake cannot decode: baked with its colour factors alone",
-                    material.name().unwrap_or("unnamed"),
-                    info.texture().index()
-                ));
-            }
-        }
-    }
+    notices.extend(material_notices(&source, &materials, &used));
     let (images, image_notices) = decode_images(&source, &materials, &used);
     notices.extend(image_notices);
     let lights = source.json.pointer("/extensions/KHR_lights_punctual/lights").and_then(|l| l.as_array());
@@ -300,6 +276,51 @@ fn triangle_list(mode: Mode, drawn: &[u32]) -> Vec<u32> {
         }
         _ => drawn[..drawn.len() - drawn.len() % 3].to_vec(),
     }
+}
+
+/// What the bake does not follow in the used materials, one notice each:
+/// blending and transmission are baked as opaque, and a texture with only a
+/// KTX2 image as if it were absent.
+fn material_notices(source: &SourceAsset, materials: &[Material], used: &[usize]) -> Vec<String> {
+    let mut notices = Vec::new();
+    for &m in used {
+        let name = materials[m].name.as_deref().unwrap_or("unnamed");
+        if materials[m].alpha == AlphaMode::Blend {
+            notices.push(format!(
+                "material {m} '{name}' is alpha-blended: baked as opaque (only MASK cut-outs let light through)"
+            ));
+        }
+        for (extension, factor) in [
+            ("KHR_materials_transmission", "transmissionFactor"),
+            ("KHR_materials_diffuse_transmission", "diffuseTransmissionFactor"),
+        ] {
+            let Some(settings) = source.json.pointer(&format!("/materials/{m}/extensions/{extension}")) else {
+                continue;
+            };
+            // A texture alone leaves the factor at 0: nothing is transmitted.
+            if settings.get(factor).and_then(serde_json::Value::as_f64).is_some_and(|f| f > 0.0) {
+                notices.push(format!(
+                    "material {m} '{name}' transmits light ({extension}): baked as opaque, so light that would pass \
+                     through it is missing behind it"
+                ));
+            }
+        }
+        let material = source.document.materials().nth(m).expect("a used material exists");
+        let textures = [
+            ("base colour", material.pbr_metallic_roughness().base_color_texture()),
+            ("emissive", material.emissive_texture()),
+        ];
+        for (kind, info) in textures.into_iter().filter_map(|(kind, info)| Some((kind, info?))) {
+            if info.texture().source().is_none() {
+                notices.push(format!(
+                    "material {m} '{name}': its {kind} texture {} has only an extension's image (KHR_texture_basisu), \
+                     which bake cannot decode: baked with its colour factors alone",
+                    info.texture().index()
+                ));
+            }
+        }
+    }
+    notices
 }
 
 fn material(m: gltf::Material) -> Material {

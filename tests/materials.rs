@@ -238,3 +238,30 @@ fn vertex_coloured_closed_room_reaches_le_over_one_minus_rho_and_bakes_its_textu
         assert!((stored[c] / expected - 1.0).abs() < 1e-4, "channel {c}: texture {} against {expected}", stored[c]);
     }
 }
+
+#[test]
+fn transmissive_and_blended_materials_are_named_in_a_notice_as_baked_opaque() {
+    let mut builder = SceneBuilder::new();
+    builder.object("glass", &MeshData::plane(1.0, 1.0, 1), [0.9, 0.9, 0.9, 1.0], [0.0; 3], Placement::default());
+    builder.object("leaf", &MeshData::plane(1.0, 1.0, 1), [0.2, 0.6, 0.2, 0.5], [0.0; 3], Placement::default());
+    builder.object("tinted", &MeshData::plane(1.0, 1.0, 1), [0.5, 0.5, 0.5, 0.5], [0.0; 3], Placement::default());
+    let glb = builder.to_glb();
+    let parsed = gltf::binary::Glb::from_slice(&glb).unwrap();
+    let mut document: serde_json::Value = serde_json::from_slice(&parsed.json).unwrap();
+    document["materials"][0]["extensions"] = json!({ "KHR_materials_transmission": { "transmissionFactor": 1.0 } });
+    document["materials"][1]["extensions"] =
+        json!({ "KHR_materials_diffuse_transmission": { "diffuseTransmissionFactor": 0.4 } });
+    document["materials"][2]["alphaMode"] = json!("BLEND");
+    let json = serde_json::to_vec(&document).unwrap();
+    let bytes = bake::export::glb::encode(&json, &parsed.bin.unwrap());
+    let source = bake::asset::SourceAsset::from_bytes(std::path::Path::new("glass.glb"), &bytes, None).unwrap();
+    let notices = bake::import::from_asset(source).unwrap().notices;
+    eprintln!("{notices:#?}");
+    for expected in [
+        "material 0 'glass' transmits light (KHR_materials_transmission): baked as opaque",
+        "material 1 'leaf' transmits light (KHR_materials_diffuse_transmission): baked as opaque",
+        "material 2 'tinted' is alpha-blended: baked as opaque",
+    ] {
+        assert!(notices.iter().any(|n| n.contains(expected)), "no notice says '{expected}'");
+    }
+}
