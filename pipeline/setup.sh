@@ -4,10 +4,10 @@
 # - the Vulkan loader and Mesa's drivers, whose lavapipe runs wgpu on the CPU
 #   when there is no GPU;
 # - make, which runs the build-step example (pipeline/Makefile) and its test;
-# - Node.js (when there is no `node`) and the Khronos glTF validator, from npm
-#   at the version pinned in pipeline/package-lock.json, into
-#   pipeline/node_modules (ignored by git); tests/validator.rs runs it through
-#   pipeline/validate.mjs.
+# - Node.js (when there is no `node`), the Khronos glTF validator and
+#   gltfpack, from npm at the versions pinned in pipeline/package-lock.json,
+#   into pipeline/node_modules (ignored by git); tests/validator.rs runs the
+#   validator through pipeline/validate.mjs, tests/gltfpack.rs runs gltfpack.
 set -eu
 cd "$(dirname "$0")"
 if [ "$(id -u)" -eq 0 ]; then sudo=""; else sudo="sudo"; fi
@@ -24,9 +24,12 @@ if [ -n "$missing" ]; then
     $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -q $missing
 fi
 
-pinned=$(node -p "require('./package-lock.json').packages['node_modules/gltf-validator'].version")
-installed=$(node -p "require('./node_modules/gltf-validator/package.json').version" 2>/dev/null || true)
-if [ "$installed" != "$pinned" ]; then
-    echo "installing: gltf-validator $pinned (npm, into pipeline/node_modules)" >&2
-    npm ci --no-audit --no-fund --loglevel=error
-fi
+for tool in gltf-validator gltfpack; do
+    pinned=$(node -p "require('./package-lock.json').packages['node_modules/$tool'].version")
+    installed=$(node -p "require('./node_modules/$tool/package.json').version" 2>/dev/null || true)
+    if [ "$installed" != "$pinned" ]; then
+        echo "installing: $tool $pinned and the other pinned tools (npm, into pipeline/node_modules)" >&2
+        npm ci --no-audit --no-fund --loglevel=error
+        break
+    fi
+done

@@ -357,6 +357,47 @@ fn gpu_instances_with_mismatched_attributes_are_refused_naming_the_node() {
 }
 
 #[test]
+fn corrupt_meshopt_compressed_data_is_refused_naming_the_buffer_view() {
+    // sphere_on_ground with its first POSITION view stored as gltfpack does:
+    // meshopt-compressed bytes at the end of the BIN chunk, the view itself
+    // in a fallback buffer with no data.
+    let (mut json, mut bin) = parts();
+    let accessor = json["meshes"][0]["primitives"][0]["attributes"]["POSITION"].as_u64().unwrap() as usize;
+    let view = json["accessors"][accessor]["bufferView"].as_u64().unwrap() as usize;
+    let (offset, length) =
+        (element_offset(&json, accessor, 0), json["bufferViews"][view]["byteLength"].as_u64().unwrap());
+    let positions: Vec<[u8; 12]> =
+        bin[offset..offset + length as usize].chunks_exact(12).map(|c| c.try_into().unwrap()).collect();
+    let encoded = meshopt::encode_vertex_buffer(&positions).unwrap();
+    let at = bin.len();
+    bin.extend_from_slice(&encoded);
+    json["buffers"][0]["byteLength"] = json!(bin.len());
+    let fallback = json!({ "byteLength": json["buffers"][0]["byteLength"], "extensions": {
+        "EXT_meshopt_compression": { "fallback": true } } });
+    json["buffers"].as_array_mut().unwrap().push(fallback);
+    json["bufferViews"][view]["buffer"] = json!(1);
+    json["bufferViews"][view]["extensions"] = json!({ "EXT_meshopt_compression": {
+        "buffer": 0, "byteOffset": at, "byteLength": encoded.len(), "byteStride": 12,
+        "count": positions.len(), "mode": "ATTRIBUTES" } });
+    json["extensionsUsed"] = json!(["EXT_meshopt_compression"]);
+    json["extensionsRequired"] = json!(["EXT_meshopt_compression"]);
+    let case = Case::new();
+    case.write("packed.glb", &glb(&json, &bin));
+    let output = case.bake("packed.glb");
+    assert!(output.status.success(), "the intact file bakes: {}", String::from_utf8_lossy(&output.stderr));
+
+    // Cut short, the data cannot be decoded.
+    json["bufferViews"][view]["extensions"]["EXT_meshopt_compression"]["byteLength"] = json!(encoded.len() / 2);
+    let case = Case::new();
+    case.write("corrupt.glb", &glb(&json, &bin));
+    case.refused(
+        &["corrupt.glb"],
+        "corrupt.glb",
+        &format!("buffer view {view}: the compressed vertex data is corrupt"),
+    );
+}
+
+#[test]
 fn a_bad_second_input_leaves_none_of_the_first_ones_outputs() {
     let case = Case::new();
     std::fs::create_dir(case.path("out")).unwrap();

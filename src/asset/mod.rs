@@ -8,6 +8,7 @@
 
 pub mod accessor;
 pub mod instancing;
+pub mod meshopt;
 
 use std::path::{Path, PathBuf};
 
@@ -24,6 +25,8 @@ const SUPPORTED_REQUIRED: &[&str] = &[
     "KHR_materials_variants",
     "KHR_texture_basisu",
     instancing::EXTENSION,
+    meshopt::EXTENSIONS[0],
+    meshopt::EXTENSIONS[1],
 ];
 
 /// A glTF asset loaded from `.gltf` or `.glb`.
@@ -61,19 +64,14 @@ impl SourceAsset {
         let json: serde_json::Value =
             serde_json::from_slice(&json_bytes).map_err(|e| anyhow!("invalid glTF JSON: {e}"))?;
         check_required_extensions(&json)?;
-        // The gltf crate refuses every required extension it does not
-        // implement itself, quantization and instancing included, which bake
-        // reads: the list is vetted above, so it validates the rest without it.
-        let mut vetted = json.clone();
-        vetted.as_object_mut().map(|root| root.remove("extensionsRequired"));
-        let root: gltf::json::Root = serde_json::from_value(vetted).map_err(|e| anyhow!("invalid glTF JSON: {e}"))?;
-        check_unvalidated(&root)?;
-        let document =
-            gltf::Document::from_json(root).map_err(|e| anyhow!("invalid glTF: {}", describe_validation(&e)))?;
+        let document = validate(&json)?;
 
+        let mut json = json;
         let mut buffers = Vec::new();
         for buffer in document.buffers() {
             let data = match buffer.source() {
+                // Filled by decoding the views that point into it.
+                _ if meshopt::is_fallback(&json, buffer.index()) => Vec::new(),
                 gltf::buffer::Source::Bin => blob
                     .clone()
                     .ok_or_else(|| anyhow!("buffer {} refers to a GLB binary chunk that is missing", buffer.index()))?,
@@ -81,7 +79,7 @@ impl SourceAsset {
                     resolve_uri(uri, base).with_context(|| format!("buffer {}", buffer.index()))?
                 }
             };
-            if data.len() < buffer.length() {
+            if data.len() < buffer.length() && !meshopt::is_fallback(&json, buffer.index()) {
                 bail!(
                     "buffer {} is truncated: {} bytes of the declared {}",
                     buffer.index(),
@@ -91,6 +89,10 @@ impl SourceAsset {
             }
             buffers.push(data);
         }
+        let document = match meshopt::decode(&mut json, &mut buffers)? {
+            0 => document,
+            _ => validate(&json)?,
+        };
         // Images are decoded or copied later; a missing or refused file is an
         // error now, before any baking, not at export.
         for image in document.images() {
@@ -171,6 +173,18 @@ fn check_unvalidated(root: &gltf::json::Root) -> Result<()> {
     Ok(())
 }
 
+/// The validated document of `json`, whose required extensions are vetted
+/// (`check_required_extensions`): the gltf crate refuses every one it does
+/// not implement itself, quantization and instancing included, which bake
+/// reads, so it validates the rest without the list.
+fn validate(json: &serde_json::Value) -> Result<gltf::Document> {
+    let mut vetted = json.clone();
+    vetted.as_object_mut().map(|root| root.remove("extensionsRequired"));
+    let root: gltf::json::Root = serde_json::from_value(vetted).map_err(|e| anyhow!("invalid glTF JSON: {e}"))?;
+    check_unvalidated(&root)?;
+    gltf::Document::from_json(root).map_err(|e| anyhow!("invalid glTF: {}", describe_validation(&e)))
+}
+
 fn looks_like_json(bytes: &[u8]) -> bool {
     let text = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     text.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{')
@@ -182,7 +196,7 @@ fn check_required_extensions(json: &serde_json::Value) -> Result<()> {
     };
     for name in required.iter().filter_map(|v| v.as_str()) {
         match name {
-            "KHR_draco_mesh_compression" | "EXT_meshopt_compression" | "KHR_meshopt_compression" => bail!(
+            "KHR_draco_mesh_compression" => bail!(
                 "meshes are compressed with {name}, which bake does not decode; \
                  decompress them first, e.g. `npx @gltf-transform/cli cp IN.glb PLAIN.glb`"
             ),
