@@ -519,6 +519,19 @@ impl SceneBuilder {
     }
 }
 
+/// A closed room (inward-facing box of `size`) of one grey material of
+/// base colour `base` and emission `emission`, every vertex coloured `tint`
+/// (COLOR_0): its albedo is `base × tint`.
+pub fn vertex_coloured_room(size: [f32; 3], base: f32, emission: f32, tint: [f32; 3]) -> SceneBuilder {
+    let room = MeshData::room(size);
+    let mut builder = SceneBuilder::new();
+    let material = builder.material("room", [base, base, base, 1.0], [emission; 3]);
+    let mesh = builder.mesh("room", &room, Some(material));
+    builder.vertex_colors(mesh, &vec![tint; room.positions.len()]);
+    builder.node("room", mesh, Placement::default());
+    builder
+}
+
 /// Every file in `fixtures/`: (file name, bytes). Scenes as `.glb`;
 /// environments with known answers as Radiance `.hdr` and OpenEXR.
 pub fn files() -> anyhow::Result<Vec<(String, Vec<u8>)>> {

@@ -208,12 +208,7 @@ fn vertex_coloured_closed_room_reaches_le_over_one_minus_rho_and_bakes_its_textu
     let gpu = common::gpu();
     let le = 0.25f32;
     let tint = [0.625f32, 0.3125, 0.9375];
-    let room = MeshData::room([2.0, 2.0, 2.0]);
-    let mut builder = SceneBuilder::new();
-    let material = builder.material("room", [0.8, 0.8, 0.8, 1.0], [le; 3]);
-    let mesh = builder.mesh("room", &room, Some(material));
-    builder.vertex_colors(mesh, &vec![tint; room.positions.len()]);
-    builder.node("room", mesh, Placement::default());
+    let builder = bake::fixtures::vertex_coloured_room([2.0, 2.0, 2.0], 0.8, le, tint);
     let scene = common::scene(&builder, "room");
     let baked = bake::bake_scene(&gpu, scene, None, &common::options(64), &mut bake::progress::Silent).unwrap();
     common::assert_valid(&baked);

@@ -213,13 +213,7 @@ fn closed_room_converges_to_the_geometric_series() {
 fn vertex_colours_multiply_the_rooms_albedo() {
     // Base colour 0.8 × COLOR_0 (0.625, 0.3125, 0.9375): ρ = (0.5, 0.25, 0.75).
     let (le, tint) = (0.6f32, [0.625f32, 0.3125, 0.9375]);
-    let room = MeshData::room([2.0, 3.0, 4.0]);
-    let mut builder = SceneBuilder::new();
-    let material = builder.material("room", [0.8, 0.8, 0.8, 1.0], [le; 3]);
-    let mesh = builder.mesh("room", &room, Some(material));
-    builder.vertex_colors(mesh, &vec![tint; room.positions.len()]);
-    builder.node("room", mesh, Placement::default());
-    let scene = scene(&builder);
+    let scene = scene(&bake::fixtures::vertex_coloured_room([2.0, 3.0, 4.0], 0.8, le, tint));
     let reference = Reference::new(&scene, None, &options(8192));
     let points: Vec<ReferencePoint> = surface_points(&scene, 3, 2).iter().map(|p| p.point).collect();
     let expected = tint.map(|t| le as f64 / (1.0 - 0.8 * t as f64));

@@ -111,7 +111,10 @@ fn decode_view(extension: &Value, buffers: &[Vec<u8>]) -> Result<Vec<u8>> {
     let filter = extension.get("filter").and_then(Value::as_str).unwrap_or("NONE");
     match mode {
         "ATTRIBUTES" => {
-            ensure!(stride.is_multiple_of(4) && (4..=256).contains(&stride), "byteStride {stride} is not 4 to 256 by 4");
+            ensure!(
+                stride.is_multiple_of(4) && (4..=256).contains(&stride),
+                "byteStride {stride} is not 4 to 256 by 4"
+            );
             let mut bytes = vec![0u8; size];
             // SAFETY: `bytes` holds `count` elements of `stride` bytes; the
             // decoder reads only `data` and is safe on untrusted input.
