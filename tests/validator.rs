@@ -200,3 +200,17 @@ fn gpu_instances_become_child_nodes_each_with_its_own_lightmap_uvs() {
     assert_eq!(instances, [Some(0), Some(1), Some(2)]);
     assert!(energy.iter().filter(|e| e.node == 1).all(|e| e.stats.texels > 0 && e.name.starts_with("boxes[")));
 }
+
+#[test]
+fn a_report_longer_than_a_pipe_buffer_reads_back_whole() {
+    // 3,000 unused accessors: one message each, a report far past 64 KiB.
+    let dir = tempfile::tempdir().unwrap();
+    let accessors: Vec<serde_json::Value> =
+        (0..3000).map(|_| serde_json::json!({ "componentType": 5126, "count": 1, "type": "SCALAR" })).collect();
+    let file = dir.path().join("unused.gltf");
+    let document = serde_json::json!({ "asset": { "version": "2.0" }, "accessors": accessors });
+    std::fs::write(&file, serde_json::to_vec(&document).unwrap()).unwrap();
+    let (errors, _, messages) = validate(&file);
+    assert_eq!(errors, 0, "{:?}", &messages[..3]);
+    assert!(messages.len() >= 3000, "{} messages", messages.len());
+}
