@@ -8,8 +8,9 @@
 //! accessors, and each baked node that draws it gets a copy. A mesh drawn by
 //! several baked nodes is copied too, so that each node gets its own
 //! lightmap region, and so is the mesh of each GPU instance, which becomes
-//! a child node of its own (EXT_mesh_gpu_instancing shares one set of UVs). An input TEXCOORD_1 that the lightmap UVs replace moves
-//! to the first free TEXCOORD_n, so no vertex data is lost.
+//! a child node of its own (EXT_mesh_gpu_instancing shares one set of UVs).
+//! An input TEXCOORD_1 that the lightmap UVs replace moves to the first
+//! free TEXCOORD_n, so no vertex data is lost.
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -141,9 +142,15 @@ fn output_meshes(document: &mut Document, scene: &Scene) -> Result<BTreeMap<(usi
             .and_then(Value::as_str)
             .map_or_else(|| format!("node {node}"), |n| format!("node '{n}'"))
     };
+    let mut instanced = BTreeMap::new();
+    for node in scene.primitives.iter().filter(|p| p.instance.is_some()).map(|p| p.node) {
+        if let std::collections::btree_map::Entry::Vacant(entry) = instanced.entry(node) {
+            let instances = instancing::read(&scene.source, node)?;
+            entry.insert(instances.ok_or_else(|| anyhow!("node {node}: its instances are gone"))?);
+        }
+    }
     let mut mesh_of = BTreeMap::new();
     let mut claimed = BTreeSet::new();
-    let mut instanced = BTreeMap::new();
     for primitive in &scene.primitives {
         let key = (primitive.node, primitive.instance);
         if mesh_of.contains_key(&key) {
@@ -162,14 +169,12 @@ fn output_meshes(document: &mut Document, scene: &Scene) -> Result<BTreeMap<(usi
         let drawer = match primitive.instance {
             None => primitive.node,
             Some(k) => {
-                let instances = match instanced.entry(primitive.node) {
-                    std::collections::btree_map::Entry::Occupied(e) => e.into_mut(),
-                    std::collections::btree_map::Entry::Vacant(e) => e.insert(
-                        instancing::read(&scene.source, primitive.node)?
-                            .ok_or_else(|| anyhow!("node {}: its instances are gone", primitive.node))?,
-                    ),
-                };
-                instance_node(document, primitive.node, &node_name(primitive.node), instances, k)?
+                let parent = primitive.node;
+                let name = nodes[parent]
+                    .get("name")
+                    .and_then(Value::as_str)
+                    .map_or_else(|| format!("node {parent}"), str::to_string);
+                instance_node(document, parent, &name, &instanced[&parent], k)?
             }
         };
         document.json["nodes"][drawer]["mesh"] = json!(target);
