@@ -9,6 +9,8 @@
 use anyhow::{Context, Result, anyhow, bail, ensure};
 use serde_json::Value;
 
+use super::{drop_extensions, remove_extension};
+
 pub const EXTENSIONS: [&str; 2] = ["EXT_meshopt_compression", "KHR_meshopt_compression"];
 
 /// The most a fallback buffer may declare: it is allocated before decoding.
@@ -61,14 +63,7 @@ pub fn decode(json: &mut Value, buffers: &mut [Vec<u8>]) -> Result<usize> {
                 remove_extension(&mut json["buffers"][b], name);
             }
         }
-        for list in ["extensionsUsed", "extensionsRequired"] {
-            if let Some(names) = json.get_mut(list).and_then(Value::as_array_mut) {
-                names.retain(|n| !EXTENSIONS.iter().any(|e| n == e));
-                if names.is_empty() {
-                    json.as_object_mut().map(|o| o.remove(list));
-                }
-            }
-        }
+        drop_extensions(json, &EXTENSIONS);
     }
     Ok(decoded)
 }
@@ -173,12 +168,4 @@ fn unfilter(bytes: &mut [u8], count: usize, stride: usize, filter: &str) -> Resu
         other => bail!("unknown filter '{other}'"),
     }
     Ok(())
-}
-
-fn remove_extension(object: &mut Value, name: &str) {
-    let Some(extensions) = object.get_mut("extensions").and_then(Value::as_object_mut) else { return };
-    extensions.remove(name);
-    if extensions.is_empty() {
-        object.as_object_mut().map(|o| o.remove("extensions"));
-    }
 }

@@ -185,6 +185,29 @@ fn validate(json: &serde_json::Value) -> Result<gltf::Document> {
     gltf::Document::from_json(root).map_err(|e| anyhow!("invalid glTF: {}", describe_validation(&e)))
 }
 
+/// Removes extension `name` from a glTF object (a node, a buffer view, ...),
+/// and its `extensions` object when that is left empty.
+pub fn remove_extension(object: &mut serde_json::Value, name: &str) {
+    let Some(extensions) = object.get_mut("extensions").and_then(serde_json::Value::as_object_mut) else { return };
+    extensions.remove(name);
+    if extensions.is_empty() {
+        object.as_object_mut().map(|o| o.remove("extensions"));
+    }
+}
+
+/// Removes `names` from a document's `extensionsUsed` and
+/// `extensionsRequired`, and a list left empty (glTF forbids empty ones).
+pub fn drop_extensions(json: &mut serde_json::Value, names: &[&str]) {
+    for list in ["extensionsUsed", "extensionsRequired"] {
+        if let Some(listed) = json.get_mut(list).and_then(serde_json::Value::as_array_mut) {
+            listed.retain(|n| !names.iter().any(|name| n == name));
+            if listed.is_empty() {
+                json.as_object_mut().map(|o| o.remove(list));
+            }
+        }
+    }
+}
+
 fn looks_like_json(bytes: &[u8]) -> bool {
     let text = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     text.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{')

@@ -167,19 +167,6 @@ impl Document {
         }
     }
 
-    /// Removes `name` from `extensionsUsed` and `extensionsRequired` (the
-    /// latter left out when it empties, as glTF forbids an empty list).
-    pub fn drop_extension(&mut self, name: &str) {
-        for list in ["extensionsUsed", "extensionsRequired"] {
-            if let Some(names) = self.json.get_mut(list).and_then(Value::as_array_mut) {
-                names.retain(|v| v != name);
-                if names.is_empty() {
-                    self.json.as_object_mut().map(|o| o.remove(list));
-                }
-            }
-        }
-    }
-
     /// The finished output as (file name, bytes): `<stem>.glb`, or
     /// `<stem>.gltf`, `<stem>.bin` and the image files.
     pub fn into_files(mut self, stem: &str, format: Format) -> Result<Vec<(String, Vec<u8>)>> {

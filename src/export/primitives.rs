@@ -19,7 +19,7 @@ use serde_json::{Value, json};
 
 use super::document::Document;
 use crate::asset::instancing::{self, Instances};
-use crate::asset::{SourceAsset, accessor};
+use crate::asset::{self, SourceAsset, accessor};
 use crate::scene::Scene;
 use crate::unwrap::{Atlas, UnwrappedMesh};
 
@@ -136,12 +136,7 @@ fn output_meshes(document: &mut Document, scene: &Scene) -> Result<BTreeMap<(usi
         .filter(|(i, _)| !baked_nodes.contains(i))
         .filter_map(|(_, node)| node.get("mesh").and_then(Value::as_u64).map(|m| m as usize))
         .collect();
-    let node_name = |node: usize| {
-        nodes[node]
-            .get("name")
-            .and_then(Value::as_str)
-            .map_or_else(|| format!("node {node}"), |n| format!("node '{n}'"))
-    };
+    let name_of = |node: usize| nodes[node].get("name").and_then(Value::as_str);
     let mut instanced = BTreeMap::new();
     for node in scene.primitives.iter().filter(|p| p.instance.is_some()).map(|p| p.node) {
         if let std::collections::btree_map::Entry::Vacant(entry) = instanced.entry(node) {
@@ -163,17 +158,16 @@ fn output_meshes(document: &mut Document, scene: &Scene) -> Result<BTreeMap<(usi
             let mut copy = scene.source.json["meshes"][mesh].clone();
             let name = copy.get("name").and_then(Value::as_str).map_or_else(|| format!("mesh {mesh}"), str::to_string);
             let instance = primitive.instance.map(|k| format!(", instance {k}")).unwrap_or_default();
-            copy["name"] = json!(format!("{name} ({}{instance})", node_name(primitive.node)));
+            let node = primitive.node;
+            let node = name_of(node).map_or_else(|| format!("node {node}"), |n| format!("node '{n}'"));
+            copy["name"] = json!(format!("{name} ({node}{instance})"));
             document.push("meshes", copy)
         };
         let drawer = match primitive.instance {
             None => primitive.node,
             Some(k) => {
                 let parent = primitive.node;
-                let name = nodes[parent]
-                    .get("name")
-                    .and_then(Value::as_str)
-                    .map_or_else(|| format!("node {parent}"), str::to_string);
+                let name = name_of(parent).map_or_else(|| format!("node {parent}"), str::to_string);
                 instance_node(document, parent, &name, &instanced[&parent], k)?
             }
         };
@@ -182,20 +176,14 @@ fn output_meshes(document: &mut Document, scene: &Scene) -> Result<BTreeMap<(usi
     }
     for &node in instanced.keys() {
         let node = &mut document.json["nodes"][node];
-        let extensions = node.get_mut("extensions").and_then(Value::as_object_mut);
-        if let Some(extensions) = extensions {
-            extensions.remove(instancing::EXTENSION);
-            if extensions.is_empty() {
-                node.as_object_mut().map(|n| n.remove("extensions"));
-            }
-        }
+        asset::remove_extension(node, instancing::EXTENSION);
         node.as_object_mut().map(|n| n.remove("mesh"));
     }
     let still_instanced = document.json["nodes"].as_array().is_some_and(|nodes| {
         nodes.iter().any(|n| n.pointer(&format!("/extensions/{}", instancing::EXTENSION)).is_some())
     });
     if !instanced.is_empty() && !still_instanced {
-        document.drop_extension(instancing::EXTENSION);
+        asset::drop_extensions(&mut document.json, &[instancing::EXTENSION]);
     }
     Ok(mesh_of)
 }
