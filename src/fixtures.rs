@@ -288,6 +288,7 @@ pub struct SceneBuilder {
     images: Vec<Value>,
     textures: Vec<Value>,
     samplers: Vec<Value>,
+    animations: Vec<Value>,
 }
 
 impl SceneBuilder {
@@ -374,6 +375,50 @@ impl SceneBuilder {
         for primitive in self.meshes[mesh]["primitives"].as_array_mut().expect("primitives") {
             primitive["attributes"]["COLOR_0"] = json!(accessor);
         }
+    }
+
+    /// Appends a morph target to every primitive of `mesh` that displaces
+    /// `attribute` (`POSITION`, `NORMAL`, `TEXCOORD_0`, `COLOR_0`, ...) by
+    /// `displacements`, one per vertex; returns the target's index.
+    pub fn morph_target<const N: usize>(&mut self, mesh: usize, attribute: &str, displacements: &[[f32; N]]) -> usize {
+        let kind = ["SCALAR", "VEC2", "VEC3", "VEC4"][N - 1];
+        // The spec asks for bounds on POSITION displacements.
+        let accessor = self.push_floats(displacements, kind, attribute == "POSITION");
+        let mut index = 0;
+        for primitive in self.meshes[mesh]["primitives"].as_array_mut().expect("primitives") {
+            let targets = primitive.as_object_mut().unwrap().entry("targets").or_insert_with(|| json!([]));
+            let targets = targets.as_array_mut().unwrap();
+            targets.push(json!({ attribute: accessor }));
+            index = targets.len() - 1;
+        }
+        index
+    }
+
+    /// Sets the default morph weights of `mesh`.
+    pub fn mesh_weights(&mut self, mesh: usize, weights: &[f32]) {
+        self.meshes[mesh]["weights"] = json!(weights);
+    }
+
+    /// Sets the morph weights `node` draws its mesh with.
+    pub fn node_weights(&mut self, node: usize, weights: &[f32]) {
+        self.nodes[node]["weights"] = json!(weights);
+    }
+
+    /// Adds an animation that moves `node`'s morph weights linearly through
+    /// `keys` (time in seconds, then one weight per target).
+    pub fn animate_weights(&mut self, node: usize, keys: &[(f32, Vec<f32>)]) {
+        let times: Vec<[f32; 1]> = keys.iter().map(|(t, _)| [*t]).collect();
+        let values: Vec<[f32; 1]> = keys.iter().flat_map(|(_, w)| w.iter().map(|&w| [w])).collect();
+        let (input, output) = (self.push_floats(&times, "SCALAR", true), self.push_floats(&values, "SCALAR", false));
+        for accessor in [input, output] {
+            // Animation data must not sit in vertex buffer views.
+            let view = self.accessors[accessor]["bufferView"].as_u64().unwrap() as usize;
+            self.buffer_views[view].as_object_mut().unwrap().remove("target");
+        }
+        self.animations.push(json!({
+            "channels": [{ "sampler": 0, "target": { "node": node, "path": "weights" } }],
+            "samplers": [{ "input": input, "output": output }],
+        }));
     }
 
     /// Adds a root node drawing `mesh` at `placement`.
@@ -503,6 +548,9 @@ impl SceneBuilder {
         });
         if !extensions_used.is_empty() {
             doc["extensionsUsed"] = json!(extensions_used);
+        }
+        if !self.animations.is_empty() {
+            doc["animations"] = json!(self.animations);
         }
         if !self.images.is_empty() {
             doc["images"] = json!(self.images);

@@ -1,9 +1,10 @@
 //! Import stage: a glTF file in, a `Scene` out: every static triangle
 //! primitive reachable from the default scene (or the first), node
 //! transforms applied, each GPU instance (EXT_mesh_gpu_instancing) as a
-//! primitive of its own, with its material. What cannot be baked (points,
-//! lines, skinned or morphing meshes) is left out with a notice, never
-//! silently.
+//! primitive of its own, with its material. A morphing mesh is baked at its
+//! static weights and an animated node in its rest pose, each with a
+//! notice. What cannot be baked (points, lines, skinned meshes) is left out
+//! with a notice, never silently.
 //!
 //! Transforms are composed and applied in f64 and positions stored in f32
 //! relative to `Scene::origin` (see `scene::choose_origin`): f32 world
@@ -11,11 +12,11 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result, anyhow, bail};
+use anyhow::{Context, Result, anyhow, bail, ensure};
 use glam::{DMat3, DMat4, DVec3};
 use gltf::mesh::Mode;
 
-use crate::asset::{SourceAsset, accessor, instancing};
+use crate::asset::{SourceAsset, accessor, instancing, morph};
 use crate::repeats;
 use crate::scene::{AlphaMode, LinearImage, Material, Scene, ScenePrimitive, TextureRef, choose_origin};
 
@@ -35,16 +36,25 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
 
     let mut notices = Vec::new();
     let mut gathered = Vec::new();
-    let mut stack: Vec<(gltf::Node, DMat4)> = gltf_scene.nodes().map(|n| (n, DMat4::IDENTITY)).collect();
+    let animated = morph::animated_nodes(&source.json);
+    // Animated nodes with baked geometry at or below them (the nearest such node).
+    let mut moved = std::collections::BTreeSet::new();
+    // Each node with its parent's world transform and its nearest animated ancestor.
+    let mut stack: Vec<(gltf::Node, DMat4, Option<usize>)> =
+        gltf_scene.nodes().map(|n| (n, DMat4::IDENTITY, None)).collect();
     stack.reverse();
     let mut visits = 0usize;
-    while let Some((node, parent)) = stack.pop() {
+    while let Some((node, parent, animated_above)) = stack.pop() {
         visits += 1;
         if visits > document.nodes().len() * 4 + 16 {
             bail!("the node hierarchy has a cycle");
         }
         let local = node.transform().matrix().map(|column| column.map(f64::from));
         let world = parent * DMat4::from_cols_array_2d(&local);
+        let animated_above = Some(node.index()).filter(|n| animated.contains_key(n)).or(animated_above);
+        if let (Some(_), None, Some(animated)) = (node.mesh(), node.skin(), animated_above) {
+            moved.insert(animated);
+        }
         if let Some(mesh) = node.mesh() {
             match instancing::read(&source, node.index())? {
                 None => collect_mesh(&source, &node, None, &mesh, world, &mut gathered, &mut notices)?,
@@ -64,8 +74,17 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
             }
         }
         for child in node.children().collect::<Vec<_>>().into_iter().rev() {
-            stack.push((child, world));
+            stack.push((child, world, animated_above));
         }
+    }
+    for node in moved {
+        let name = document.nodes().nth(node).and_then(|n| n.name()).map(|n| format!(" '{n}'")).unwrap_or_default();
+        let properties: Vec<&str> = animated[&node].iter().map(String::as_str).collect();
+        notices.push(format!(
+            "node {node}{name} is animated ({}): it and the nodes below it are baked in their rest pose, so their \
+             lightmaps, and the light and shadow they cast on the rest, hold in that pose only",
+            properties.join(", ")
+        ));
     }
     if gathered.is_empty() {
         bail!("the scene has no triangle geometry to bake");
@@ -149,12 +168,17 @@ fn collect_mesh(
     }
     let normal_matrix = DMat3::from_mat4(world).inverse().transpose();
     let mirrored = DMat3::from_mat4(world).determinant() < 0.0;
+    let weights = morph::weights(node, mesh).with_context(|| what.clone())?;
+    // One notice for a node's instances: they all draw its weights.
+    if !weights.is_empty() && instance.unwrap_or(0) == 0 {
+        notices.push(format!(
+            "{what} has {} morph targets: baked at its weights {weights:?}; the targets are kept, and its lightmap \
+             holds for these weights only",
+            weights.len()
+        ));
+    }
     for primitive in mesh.primitives() {
         let what = format!("{what}, primitive {}", primitive.index());
-        if primitive.morph_targets().len() > 0 {
-            notices.push(format!("{what} has morph targets (not static): left out of the bake"));
-            continue;
-        }
         let mode = primitive.mode();
         if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
             notices.push(format!("{what} draws {mode:?}, not triangles: left out of the bake"));
@@ -165,69 +189,52 @@ fn collect_mesh(
             continue;
         };
         let read = || -> Result<Gathered> {
-            let local = accessor::read_vectors::<3>(source, &position_accessor)?;
-            if let Some(i) = local.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
-                bail!("POSITION {i} is not finite ({:?})", local[i]);
+            let morph = |attribute: &str, accessor: &gltf::Accessor, width: usize| -> Result<Vec<f32>> {
+                let found = accessor.dimensions().multiplicity();
+                ensure!(found == width, "{attribute} has {found} components, {width} expected");
+                let mut values = accessor::read_floats(source, accessor).context(attribute.to_string())?;
+                morph::displace(source, mesh.index(), primitive.index(), &weights, attribute, width, &mut values)?;
+                Ok(values)
+            };
+            let local = morph("POSITION", &position_accessor, 3)?;
+            if let Some(i) = local.iter().position(|c| !c.is_finite()) {
+                bail!("POSITION {} is not finite ({:?})", i / 3, &local[i / 3 * 3..i / 3 * 3 + 3]);
             }
-            let count = local.len();
-            let world: Vec<DVec3> =
-                local.iter().map(|&p| world.transform_point3(DVec3::from(p.map(f64::from)))).collect();
+            let count = local.len() / 3;
+            let world: Vec<DVec3> = local
+                .chunks_exact(3)
+                .map(|p| world.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)))
+                .collect();
             if let Some(i) = world.iter().position(|p| !p.is_finite()) {
                 bail!("world position of vertex {i} is not finite: the node transform overflows");
             }
-            let normals = match primitive.get(&gltf::Semantic::Normals) {
-                Some(a) => {
-                    let local = accessor::read_vectors::<3>(source, &a)?;
-                    if local.len() != count {
-                        bail!("NORMAL has {} entries for {count} positions", local.len());
-                    }
-                    Some(
-                        local
-                            .iter()
-                            .map(|&n| {
-                                let n = normal_matrix * DVec3::from(n.map(f64::from));
-                                // Zero, NaN or infinite normals fall back to the face normal later.
-                                n.try_normalize().unwrap_or(DVec3::ZERO).as_vec3().to_array()
-                            })
-                            .collect(),
-                    )
+            let entries = |semantic: gltf::Semantic, attribute: &str, widths: &[usize]| -> Result<_> {
+                let Some(a) = primitive.get(&semantic) else { return Ok(None) };
+                let width = a.dimensions().multiplicity();
+                if !widths.contains(&width) {
+                    bail!("{attribute} has {width} components ({widths:?} expected)");
                 }
-                None => None,
-            };
-            let uv0 = match primitive.get(&gltf::Semantic::TexCoords(0)) {
-                Some(a) => {
-                    let uv = accessor::read_vectors::<2>(source, &a)?;
-                    if uv.len() != count {
-                        bail!("TEXCOORD_0 has {} entries for {count} positions", uv.len());
-                    }
-                    Some(uv)
+                let values = morph(attribute, &a, width)?;
+                if values.len() != count * width {
+                    bail!("{attribute} has {} entries for {count} positions", values.len() / width);
                 }
-                None => None,
+                Ok(Some((values, width)))
             };
-            let uv1 = match primitive.get(&gltf::Semantic::TexCoords(1)) {
-                Some(a) => {
-                    let uv = accessor::read_vectors::<2>(source, &a)?;
-                    if uv.len() != count {
-                        bail!("TEXCOORD_1 has {} entries for {count} positions", uv.len());
-                    }
-                    Some(uv)
-                }
-                None => None,
-            };
-            let colors = match primitive.get(&gltf::Semantic::Colors(0)) {
-                Some(a) => {
-                    let width = a.dimensions().multiplicity();
-                    if !matches!(width, 3 | 4) {
-                        bail!("COLOR_0 has {width} components (VEC3 or VEC4 expected)");
-                    }
-                    let values = accessor::read_floats(source, &a).context("COLOR_0")?;
-                    if values.len() != count * width {
-                        bail!("COLOR_0 has {} entries for {count} positions", values.len() / width);
-                    }
-                    Some(values.chunks_exact(width).map(|c| [c[0], c[1], c[2]]).collect())
-                }
-                None => None,
-            };
+            let normals = entries(gltf::Semantic::Normals, "NORMAL", &[3])?.map(|(local, _)| {
+                local
+                    .chunks_exact(3)
+                    .map(|n| {
+                        let n = normal_matrix * DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
+                        // Zero, NaN or infinite normals fall back to the face normal later.
+                        n.try_normalize().unwrap_or(DVec3::ZERO).as_vec3().to_array()
+                    })
+                    .collect()
+            });
+            let pairs = |(values, _): (Vec<f32>, usize)| values.chunks_exact(2).map(|c| [c[0], c[1]]).collect();
+            let uv0 = entries(gltf::Semantic::TexCoords(0), "TEXCOORD_0", &[2])?.map(pairs);
+            let uv1 = entries(gltf::Semantic::TexCoords(1), "TEXCOORD_1", &[2])?.map(pairs);
+            let colors = entries(gltf::Semantic::Colors(0), "COLOR_0", &[3, 4])?
+                .map(|(values, width)| values.chunks_exact(width).map(|c| [c[0], c[1], c[2]]).collect());
             let drawn = match primitive.indices() {
                 Some(a) => accessor::read_indices(source, &a)?,
                 None => (0..count as u32).collect(),

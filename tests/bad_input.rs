@@ -567,3 +567,19 @@ fn an_atlas_larger_than_the_adapter_allows_is_refused_naming_the_limit() {
     options.unwrap.max_atlas_size = max;
     bake::check_adapter_limits(&gpu, &options).unwrap();
 }
+
+#[test]
+fn morph_weights_that_do_not_match_the_targets_are_refused_naming_the_node() {
+    use bake::fixtures::{MeshData, Placement, SceneBuilder};
+    let mut scene = SceneBuilder::new();
+    let data = MeshData::cuboid([1.0; 3]);
+    let cube = scene.mesh("box", &data, None);
+    for shift in [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] {
+        scene.morph_target(cube, "POSITION", &vec![shift; data.positions.len()]);
+    }
+    let node = scene.node("box", cube, Placement::default());
+    scene.node_weights(node, &[0.5]);
+    let case = Case::new();
+    case.write("morph.glb", &scene.to_glb());
+    case.refused(&["morph.glb"], "morph.glb", "node 0 lists 1 morph weights for the 2 morph targets of mesh 0");
+}

@@ -214,3 +214,84 @@ fn a_report_longer_than_a_pipe_buffer_reads_back_whole() {
     assert_eq!(errors, 0, "{:?}", &messages[..3]);
     assert!(messages.len() >= 3000, "{} messages", messages.len());
 }
+
+#[test]
+fn morph_targets_are_kept_and_follow_the_unwrapped_vertices() {
+    // A box on the ground whose node draws it with morph weights [0, 0.5]:
+    // target 0 moves every vertex, target 1 raises the top and displaces the
+    // normals and the input's own TEXCOORD_1 (which the lightmap UVs push to
+    // TEXCOORD_2, its displacement with it).
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene = SceneBuilder::new();
+    scene.object("ground", &MeshData::plane(6.0, 6.0, 1), [0.6, 0.6, 0.6, 1.0], [0.0; 3], Placement::default());
+    let data = MeshData::cuboid([0.6, 0.6, 0.6]);
+    let cube = scene.mesh("box", &data, None);
+    let count = data.positions.len();
+    scene.morph_target(cube, "POSITION", &vec![[2.0, 0.0, 0.0]; count]);
+    let raise: Vec<[f32; 3]> = data.positions.iter().map(|p| [0.0, if p[1] > 0.0 { 1.0 } else { 0.0 }, 0.0]).collect();
+    let target = scene.morph_target(cube, "POSITION", &raise);
+    let node = scene.node("box", cube, Placement::at(glam::Vec3::new(0.0, 0.3, 0.0)));
+    scene.node_weights(node, &[0.0, 0.5]);
+    let glb = scene.to_glb();
+    let parsed = gltf::binary::Glb::from_slice(&glb).unwrap();
+    let mut json: serde_json::Value = serde_json::from_slice(&parsed.json).unwrap();
+    let primitive = &mut json["meshes"][cube]["primitives"][0];
+    let normal = primitive["attributes"]["NORMAL"].clone();
+    let uv0 = primitive["attributes"]["TEXCOORD_0"].clone();
+    primitive["attributes"]["TEXCOORD_1"] = uv0.clone();
+    primitive["targets"][target]["NORMAL"] = normal;
+    primitive["targets"][target]["TEXCOORD_1"] = uv0;
+    let input = dir.path().join("morph.glb");
+    let bin = parsed.bin.unwrap().into_owned();
+    std::fs::write(&input, bake::export::glb::encode(&serde_json::to_vec(&json).unwrap(), &bin)).unwrap();
+    assert_valid(&input);
+
+    // Every triangle as its morphed corners, rounded, in a rotation-free order.
+    let weights = [0.0f32, 0.5];
+    let morphed_triangles = |file: &Path| -> (Vec<[[i64; 3]; 3]>, gltf::json::Value) {
+        let (document, buffers, _) = gltf::import(file).unwrap();
+        let mesh = document.nodes().nth(node).unwrap().mesh().unwrap();
+        let primitive = mesh.primitives().next().unwrap();
+        let reader = primitive.reader(|b| Some(&buffers[b.index()]));
+        let mut positions: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
+        let targets: Vec<_> = reader.read_morph_targets().collect();
+        assert_eq!(targets.len(), 2, "{}: both targets are kept", file.display());
+        for ((target_positions, _, _), w) in targets.into_iter().zip(weights) {
+            for (p, d) in positions.iter_mut().zip(target_positions.expect("POSITION displacements")) {
+                (0..3).for_each(|c| p[c] += w * d[c]);
+            }
+        }
+        let round = |p: [f32; 3]| p.map(|c| (c * 1e4).round() as i64);
+        let indices: Vec<u32> = reader.read_indices().unwrap().into_u32().collect();
+        let mut triangles: Vec<[[i64; 3]; 3]> = indices
+            .chunks_exact(3)
+            .map(|t| {
+                let mut corners = [0, 1, 2].map(|k| round(positions[t[k] as usize]));
+                let first = (0..3).min_by_key(|&k| corners[k]).unwrap();
+                corners.rotate_left(first);
+                corners
+            })
+            .collect();
+        triangles.sort();
+        let json = serde_json::from_slice(&gltf::binary::Glb::from_slice(&std::fs::read(file).unwrap()).unwrap().json);
+        (triangles, json.unwrap())
+    };
+    bake(&input, &dir.path().join("out"), &[]);
+    let output = dir.path().join("out/morph.glb");
+    assert_valid(&output);
+    let (before, _) = morphed_triangles(&input);
+    let (after, out) = morphed_triangles(&output);
+    assert_eq!(after, before, "the output's morphed triangles are the input's");
+    assert!(after.iter().flatten().any(|p| p[1] == 8_000), "the top (local y 0.3) raised by half of 1 m");
+
+    let box_primitive = &out["meshes"][out["nodes"][node]["mesh"].as_u64().unwrap() as usize]["primitives"][0];
+    let vertices =
+        out["accessors"][box_primitive["attributes"]["POSITION"].as_u64().unwrap() as usize]["count"].clone();
+    let targets = box_primitive["targets"].as_array().unwrap();
+    let names: Vec<Vec<&String>> = targets.iter().map(|t| t.as_object().unwrap().keys().collect()).collect();
+    assert_eq!(names, [vec!["POSITION"], vec!["NORMAL", "POSITION", "TEXCOORD_2"]]);
+    for accessor in targets.iter().flat_map(|t| t.as_object().unwrap().values()) {
+        assert_eq!(out["accessors"][accessor.as_u64().unwrap() as usize]["count"], vertices);
+    }
+    assert!(box_primitive["attributes"]["TEXCOORD_2"].is_u64(), "the input's TEXCOORD_1 moved");
+}

@@ -9,6 +9,7 @@
 pub mod accessor;
 pub mod instancing;
 pub mod meshopt;
+pub mod morph;
 
 use std::path::{Path, PathBuf};
 

@@ -10,7 +10,8 @@
 //! lightmap region, and so is the mesh of each GPU instance, which becomes
 //! a child node of its own (EXT_mesh_gpu_instancing shares one set of UVs).
 //! An input TEXCOORD_1 that the lightmap UVs replace moves to the first
-//! free TEXCOORD_n, so no vertex data is lost.
+//! free TEXCOORD_n, so no vertex data is lost. Morph targets are gathered
+//! like the attributes they displace.
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -104,6 +105,14 @@ pub fn rewrite(
             notices.insert(format!("{what}: had no TEXCOORD_0; the lightmap UVs serve as TEXCOORD_0 too"));
         }
         let indices = push_indices(document, unwrapped);
+        let targets = match input.get("targets").and_then(Value::as_array) {
+            Some(targets) => {
+                let moved = moved_uv1_to.map(|n| format!("TEXCOORD_{n}"));
+                let targets = gather_targets(document, source, targets, unwrapped, uv1_reused, moved.as_deref());
+                Some(targets.with_context(|| what.clone())?)
+            }
+            None => None,
+        };
 
         let mesh = mesh_of[&(primitive.node, primitive.instance)];
         let out = &mut document.json["meshes"][mesh]["primitives"][primitive.primitive];
@@ -113,8 +122,8 @@ pub fn rewrite(
         out["attributes"] = Value::Object(attributes);
         out["indices"] = json!(indices);
         out["mode"] = json!(4);
-        if let Some(object) = out.as_object_mut() {
-            object.remove("targets");
+        if let Some(targets) = targets {
+            out["targets"] = targets;
         }
         rewritten.push(Rewritten { mesh, primitive: primitive.primitive, material: primitive.material, moved_uv1_to });
     }
@@ -212,6 +221,41 @@ fn instance_node(
     }
     children.as_array_mut().unwrap().push(json!(index));
     Ok(index)
+}
+
+/// The primitive's morph targets gathered in the unwrap's vertex order, as
+/// its attributes are. A TEXCOORD_1 displacement follows TEXCOORD_1 to
+/// `moved_uv1`, or goes when the lightmap UVs are that TEXCOORD_1.
+fn gather_targets(
+    document: &mut Document,
+    source: &SourceAsset,
+    targets: &[Value],
+    unwrapped: &UnwrappedMesh,
+    uv1_reused: bool,
+    moved_uv1: Option<&str>,
+) -> Result<Value> {
+    let mut gathered = Vec::with_capacity(targets.len());
+    for (t, target) in targets.iter().enumerate() {
+        let mut out = serde_json::Map::new();
+        for (name, index) in target.as_object().into_iter().flatten() {
+            let name = match (name.as_str(), moved_uv1) {
+                ("TEXCOORD_1", _) if uv1_reused => continue,
+                ("TEXCOORD_1", Some(moved)) => moved,
+                (name, _) => name,
+            };
+            let source_accessor = index
+                .as_u64()
+                .and_then(|i| source.document.accessors().nth(i as usize))
+                .ok_or_else(|| anyhow!("morph target {t}: {name} names no accessor"))?;
+            // The spec asks for the bounds of a target's POSITION displacements.
+            let needs_bounds = name == "POSITION";
+            let index = gather_attribute(document, source, &source_accessor, unwrapped, needs_bounds)
+                .with_context(|| format!("morph target {t}, attribute {name}"))?;
+            out.insert(name.to_string(), json!(index));
+        }
+        gathered.push(Value::Object(out));
+    }
+    Ok(Value::Array(gathered))
 }
 
 /// The unwrapped triangle list as 16-bit indices where they fit, else 32-bit.
