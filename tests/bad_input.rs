@@ -312,10 +312,30 @@ fn unsupported_required_extensions_are_refused() {
     json["extensionsRequired"] = json!(["EXT_unknown_thing"]);
     case.write("ext.glb", &glb(&json, &bin));
     case.refused(&["ext.glb"], "ext.glb", "requires the extension EXT_unknown_thing, which bake does not support");
+}
+
+#[test]
+fn corrupt_draco_compressed_data_is_refused_naming_the_buffer_view() {
+    // sphere_on_ground's first primitive marked Draco-compressed, its
+    // attributes' data dropped and its Draco mesh said to be in the view of
+    // its indices, which holds no Draco bitstream.
+    let (mut json, bin) = parts();
+    let primitive = json["meshes"][0]["primitives"][0].clone();
+    let view = json["accessors"][primitive["indices"].as_u64().unwrap() as usize]["bufferView"].clone();
+    let mut ids = serde_json::Map::new();
+    for (k, (name, accessor)) in primitive["attributes"].as_object().unwrap().iter().enumerate() {
+        json["accessors"][accessor.as_u64().unwrap() as usize].as_object_mut().unwrap().remove("bufferView");
+        ids.insert(name.clone(), json!(k));
+    }
+    json["meshes"][0]["primitives"][0]["extensions"] =
+        json!({ "KHR_draco_mesh_compression": { "bufferView": view, "attributes": ids } });
     json["extensionsUsed"] = json!(["KHR_draco_mesh_compression"]);
     json["extensionsRequired"] = json!(["KHR_draco_mesh_compression"]);
+    let case = Case::new();
     case.write("draco.glb", &glb(&json, &bin));
-    case.refused(&["draco.glb"], "draco.glb", "compressed with KHR_draco_mesh_compression");
+    let problem = format!("buffer view {view} is not a Draco mesh that decodes");
+    let line = case.refused(&["draco.glb"], "draco.glb", &problem);
+    assert!(line.contains("mesh 0 primitive 0 (KHR_draco_mesh_compression)"), "{line}");
 }
 
 #[test]

@@ -7,6 +7,7 @@
 //! refused, so a build step never reads files the asset does not own.
 
 pub mod accessor;
+pub mod draco;
 pub mod instancing;
 pub mod meshopt;
 pub mod morph;
@@ -28,6 +29,7 @@ const SUPPORTED_REQUIRED: &[&str] = &[
     instancing::EXTENSION,
     meshopt::EXTENSIONS[0],
     meshopt::EXTENSIONS[1],
+    draco::EXTENSION,
 ];
 
 /// A glTF asset loaded from `.gltf` or `.glb`.
@@ -90,10 +92,8 @@ impl SourceAsset {
             }
             buffers.push(data);
         }
-        let document = match meshopt::decode(&mut json, &mut buffers)? {
-            0 => document,
-            _ => validate(&json)?,
-        };
+        let decoded = meshopt::decode(&mut json, &mut buffers)? + draco::decode(&mut json, &mut buffers)?;
+        let document = if decoded == 0 { document } else { validate(&json)? };
         // Images are decoded or copied later; a missing or refused file is an
         // error now, before any baking, not at export.
         for image in document.images() {
@@ -183,7 +183,17 @@ fn validate(json: &serde_json::Value) -> Result<gltf::Document> {
     vetted.as_object_mut().map(|root| root.remove("extensionsRequired"));
     let root: gltf::json::Root = serde_json::from_value(vetted).map_err(|e| anyhow!("invalid glTF JSON: {e}"))?;
     check_unvalidated(&root)?;
-    gltf::Document::from_json(root).map_err(|e| anyhow!("invalid glTF: {}", describe_validation(&e)))
+    use gltf::json::validation::{Error, Validate};
+    let mut errors = Vec::new();
+    root.validate(&root, gltf::json::Path::new, &mut |path, error| errors.push((path(), error)));
+    // A Draco primitive's accessors hold no data until it is decoded.
+    let decoded_later: Vec<String> =
+        draco::accessors_it_fills(json).iter().map(|a| format!("accessors[{a}].bufferView")).collect();
+    errors.retain(|(path, error)| !(*error == Error::Missing && decoded_later.iter().any(|a| a == path.as_str())));
+    if !errors.is_empty() {
+        bail!("invalid glTF: {}", describe_validation(&gltf::Error::Validation(errors)));
+    }
+    Ok(gltf::Document::from_json_without_validation(root))
 }
 
 /// Removes extension `name` from a glTF object (a node, a buffer view, ...),
@@ -219,13 +229,8 @@ fn check_required_extensions(json: &serde_json::Value) -> Result<()> {
         return Ok(());
     };
     for name in required.iter().filter_map(|v| v.as_str()) {
-        match name {
-            "KHR_draco_mesh_compression" => bail!(
-                "meshes are compressed with {name}, which bake does not decode; \
-                 decompress them first, e.g. `npx @gltf-transform/cli cp IN.glb PLAIN.glb`"
-            ),
-            _ if SUPPORTED_REQUIRED.contains(&name) => {}
-            _ => bail!("requires the extension {name}, which bake does not support"),
+        if !SUPPORTED_REQUIRED.contains(&name) {
+            bail!("requires the extension {name}, which bake does not support");
         }
     }
     Ok(())
