@@ -4,6 +4,7 @@
 //! a blob that cannot be regenerated.
 
 use glam::{Quat, Vec3};
+use image::ExtendedColorType::Rgba8;
 use serde_json::{Value, json};
 
 /// An indexed triangle mesh with normals and TEXCOORD_0.
@@ -478,18 +479,37 @@ impl SceneBuilder {
     /// wrap mode (glTF code) for both axes; returns the texture index.
     pub fn png_texture(&mut self, image: &image::RgbaImage, wrap: u32) -> usize {
         let mut png = Vec::new();
-        image::ImageEncoder::write_image(
-            image::codecs::png::PngEncoder::new(&mut png),
-            image.as_raw(),
-            image.width(),
-            image.height(),
-            image::ExtendedColorType::Rgba8,
-        )
-        .expect("PNG encodes");
-        let view = self.push_view(&png, None);
-        self.images.push(json!({ "bufferView": view, "mimeType": "image/png" }));
+        let encoder = image::codecs::png::PngEncoder::new(&mut png);
+        image::ImageEncoder::write_image(encoder, image.as_raw(), image.width(), image.height(), Rgba8)
+            .expect("PNG encodes");
+        let image = self.embedded_image(&png, "image/png");
+        self.texture(json!({ "source": image }), wrap)
+    }
+
+    /// Adds an sRGB RGBA image as an embedded lossless WebP that only
+    /// EXT_texture_webp names (no PNG fallback), as glTF-Transform's `webp`
+    /// command writes it; returns the texture index.
+    pub fn webp_texture(&mut self, image: &image::RgbaImage, wrap: u32) -> usize {
+        let mut webp = Vec::new();
+        let encoder = image::codecs::webp::WebPEncoder::new_lossless(&mut webp);
+        image::ImageEncoder::write_image(encoder, image.as_raw(), image.width(), image.height(), Rgba8)
+            .expect("WebP encodes");
+        let image = self.embedded_image(&webp, "image/webp");
+        self.texture(json!({ "extensions": { "EXT_texture_webp": { "source": image } } }), wrap)
+    }
+
+    fn embedded_image(&mut self, bytes: &[u8], mime: &str) -> usize {
+        let view = self.push_view(bytes, None);
+        self.images.push(json!({ "bufferView": view, "mimeType": mime }));
+        self.images.len() - 1
+    }
+
+    /// Adds `texture` (its image source set) with a sampler of wrap mode
+    /// `wrap` for both axes and linear filtering; returns its index.
+    fn texture(&mut self, mut texture: Value, wrap: u32) -> usize {
         self.samplers.push(json!({ "magFilter": 9729, "minFilter": 9987, "wrapS": wrap, "wrapT": wrap }));
-        self.textures.push(json!({ "source": self.images.len() - 1, "sampler": self.samplers.len() - 1 }));
+        texture["sampler"] = json!(self.samplers.len() - 1);
+        self.textures.push(texture);
         self.textures.len() - 1
     }
 
@@ -535,6 +555,11 @@ impl SceneBuilder {
         if self.nodes.iter().any(|n| n.pointer("/extensions/EXT_mesh_gpu_instancing").is_some()) {
             extensions_used.push("EXT_mesh_gpu_instancing");
         }
+        let mut extensions_required = Vec::new();
+        if self.textures.iter().any(|t| t.pointer("/extensions/EXT_texture_webp").is_some()) {
+            extensions_used.push("EXT_texture_webp");
+            extensions_required.push("EXT_texture_webp");
+        }
         let mut doc = json!({
             "asset": { "version": "2.0", "generator": "bake fixtures" },
             "scene": 0,
@@ -548,6 +573,9 @@ impl SceneBuilder {
         });
         if !extensions_used.is_empty() {
             doc["extensionsUsed"] = json!(extensions_used);
+        }
+        if !extensions_required.is_empty() {
+            doc["extensionsRequired"] = json!(extensions_required);
         }
         if !self.animations.is_empty() {
             doc["animations"] = json!(self.animations);

@@ -91,7 +91,7 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
     }
     let (origin, primitives) = finish_primitives(gathered, &mut notices)?;
 
-    let materials: Vec<Material> = document.materials().map(material).collect();
+    let materials: Vec<Material> = document.materials().map(|m| material(&source.json, m)).collect();
     let mut used: Vec<usize> = primitives.iter().filter_map(|p| p.material).collect();
     used.sort();
     used.dedup();
@@ -318,9 +318,9 @@ fn material_notices(source: &SourceAsset, materials: &[Material], used: &[usize]
             ("emissive", material.emissive_texture()),
         ];
         for (kind, info) in textures.into_iter().filter_map(|(kind, info)| Some((kind, info?))) {
-            if info.texture().source().is_none() {
+            if let Err(extension) = texture_image(&source.json, &info.texture()) {
                 notices.push(format!(
-                    "material {m} '{name}': its {kind} texture {} has only an extension's image (KHR_texture_basisu), \
+                    "material {m} '{name}': its {kind} texture {} has only an extension's image ({extension}), \
                      which bake cannot decode: baked with its colour factors alone",
                     info.texture().index()
                 ));
@@ -330,14 +330,14 @@ fn material_notices(source: &SourceAsset, materials: &[Material], used: &[usize]
     notices
 }
 
-fn material(m: gltf::Material) -> Material {
+fn material(json: &serde_json::Value, m: gltf::Material) -> Material {
     let strength = m.emissive_strength().unwrap_or(1.0);
     Material {
         name: m.name().map(str::to_string),
         base_color: m.pbr_metallic_roughness().base_color_factor(),
-        base_color_texture: m.pbr_metallic_roughness().base_color_texture().and_then(|info| texture_ref(&info)),
+        base_color_texture: m.pbr_metallic_roughness().base_color_texture().and_then(|info| texture_ref(json, &info)),
         emission: m.emissive_factor().map(|e| e * strength),
-        emissive_texture: m.emissive_texture().and_then(|info| texture_ref(&info)),
+        emissive_texture: m.emissive_texture().and_then(|info| texture_ref(json, &info)),
         alpha: match m.alpha_mode() {
             gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
             gltf::material::AlphaMode::Mask => AlphaMode::Mask(m.alpha_cutoff().unwrap_or(0.5)),
@@ -347,12 +347,28 @@ fn material(m: gltf::Material) -> Material {
     }
 }
 
+/// The image a texture samples: its own `source` (PNG or JPEG), else the
+/// WebP image of EXT_texture_webp. Err names the extension whose image is
+/// all it has and bake cannot decode (KHR_texture_basisu's KTX2,
+/// EXT_texture_avif's AVIF).
+fn texture_image(json: &serde_json::Value, texture: &gltf::Texture) -> Result<usize, String> {
+    if let Some(image) = texture.source() {
+        return Ok(image.index());
+    }
+    let extensions = json.pointer(&format!("/textures/{}/extensions", texture.index()));
+    let extensions = extensions.and_then(serde_json::Value::as_object);
+    // The asset's load checked that the image exists.
+    match extensions.and_then(|e| e.get("EXT_texture_webp")?.get("source")?.as_u64()) {
+        Some(image) => Ok(image as usize),
+        None => Err(extensions.map(|e| e.keys().cloned().collect::<Vec<_>>().join(", ")).unwrap_or_default()),
+    }
+}
+
 /// A texture reference with KHR_texture_transform folded into one affine map:
 /// uv' = T · R · S · uv (the extension's order), R turning by `rotation`
-/// as the extension's reference code does. `None` for a texture with no
-/// image but an extension's (a KTX2 of KHR_texture_basisu without a PNG or
-/// JPEG fallback), which bake cannot decode.
-fn texture_ref(info: &gltf::texture::Info) -> Option<TextureRef> {
+/// as the extension's reference code does. `None` for a texture whose only
+/// image bake cannot decode (see `texture_image`).
+fn texture_ref(json: &serde_json::Value, info: &gltf::texture::Info) -> Option<TextureRef> {
     let sampler = info.texture().sampler();
     let wrap = [sampler.wrap_s().as_gl_enum(), sampler.wrap_t().as_gl_enum()];
     let mut tex_coord = info.tex_coord();
@@ -366,7 +382,7 @@ fn texture_ref(info: &gltf::texture::Info) -> Option<TextureRef> {
             tex_coord = set;
         }
     }
-    Some(TextureRef { image: info.texture().source()?.index(), tex_coord, transform, wrap })
+    Some(TextureRef { image: texture_image(json, &info.texture()).ok()?, tex_coord, transform, wrap })
 }
 
 /// Decodes every image a baked primitive's material samples, into linear

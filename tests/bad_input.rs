@@ -356,6 +356,26 @@ fn required_extensions_bake_reads_are_accepted() {
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     let notices = &report(&case).scenes[0].notices;
     assert!(notices.iter().any(|n| n.contains("only an extension's image (KHR_texture_basisu)")), "{notices:?}");
+
+    // An AVIF-only texture (EXT_texture_avif) is carried the same way.
+    json["extensionsUsed"] = json!(["EXT_texture_avif"]);
+    json["extensionsRequired"] = json!(["EXT_texture_avif"]);
+    json["textures"] = json!([{ "extensions": { "EXT_texture_avif": { "source": 0 } } }]);
+    case.write("avif.glb", &glb(&json, &bin));
+    let output = case.bake("avif.glb");
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let notices = &report(&case).scenes[0].notices;
+    assert!(notices.iter().any(|n| n.contains("only an extension's image (EXT_texture_avif)")), "{notices:?}");
+
+    // One that names an image past the list is refused.
+    json["textures"] = json!([{ "extensions": { "EXT_texture_avif": { "source": 3 } } }]);
+    let case = Case::new();
+    case.write("missing.glb", &glb(&json, &bin));
+    case.refused(
+        &["missing.glb"],
+        "missing.glb",
+        "textures[0].extensions.EXT_texture_avif.source is 3, but there are 1 images",
+    );
 }
 
 #[test]

@@ -93,6 +93,32 @@ fn a_texel_averages_the_texture_it_covers() {
 }
 
 #[test]
+fn a_webp_only_texture_is_decoded_as_its_png_is() {
+    // glTF-Transform's `webp` command leaves a texture only an
+    // EXT_texture_webp image, and lists the extension as required.
+    let image = RgbaImage::from_fn(64, 64, |x, y| Rgba([(x * 4) as u8, (y * 4) as u8, 200, 255]));
+    let png = albedos(&quad(|b, m| {
+        let t = b.png_texture(&image, 33071);
+        b.base_color_texture(m, t, None);
+    }));
+    let webp = quad(|b, m| {
+        let t = b.webp_texture(&image, 33071);
+        b.base_color_texture(m, t, None);
+    });
+    let scene = common::scene(&webp, "webp");
+    assert!(scene.notices.iter().all(|n| !n.contains("texture")), "{:?}", scene.notices);
+    let webp = albedos(&webp);
+    assert_eq!(png.len(), webp.len());
+    // Lossless WebP: the same texels, to rounding.
+    for ((p, a, _), (_, b, _)) in png.iter().zip(&webp) {
+        assert!((0..3).all(|c| (a[c] - b[c]).abs() < 1e-6), "at {p}: {a:?} from the PNG, {b:?} from the WebP");
+    }
+    let spread =
+        png.iter().map(|(_, a, _)| a[0]).fold(0.0, f32::max) - png.iter().map(|(_, a, _)| a[0]).fold(1.0, f32::min);
+    assert!(spread > 0.3, "the texture varies across the quad ({spread})");
+}
+
+#[test]
 fn emissive_texture_scales_emission() {
     let texels = albedos(&quad(|b, m| {
         b.set_emission(m, [4.0, 4.0, 4.0]);

@@ -25,12 +25,18 @@ const SUPPORTED_REQUIRED: &[&str] = &[
     "KHR_texture_transform",
     "KHR_mesh_quantization",
     "KHR_materials_variants",
-    "KHR_texture_basisu",
+    IMAGE_FORMAT_EXTENSIONS[0],
+    IMAGE_FORMAT_EXTENSIONS[1],
+    IMAGE_FORMAT_EXTENSIONS[2],
     instancing::EXTENSION,
     meshopt::EXTENSIONS[0],
     meshopt::EXTENSIONS[1],
     draco::EXTENSION,
 ];
+
+/// Extensions that give a texture an image in another format: WebP bake
+/// decodes; KTX2 and AVIF it carries through.
+const IMAGE_FORMAT_EXTENSIONS: &[&str] = &["EXT_texture_webp", "EXT_texture_avif", "KHR_texture_basisu"];
 
 /// A glTF asset loaded from `.gltf` or `.glb`.
 pub struct SourceAsset {
@@ -174,6 +180,28 @@ fn check_unvalidated(root: &gltf::json::Root) -> Result<()> {
     Ok(())
 }
 
+/// An image named by a texture's image-format extension exists (the gltf
+/// crate does not know these extensions, so it cannot check them).
+fn check_texture_extension_sources(json: &serde_json::Value) -> Result<()> {
+    let images = json.get("images").and_then(serde_json::Value::as_array).map_or(0, Vec::len);
+    let textures = json.get("textures").and_then(serde_json::Value::as_array).into_iter().flatten();
+    for (t, texture) in textures.enumerate() {
+        let extensions = texture.get("extensions").and_then(serde_json::Value::as_object).into_iter().flatten();
+        for (name, extension) in extensions.filter(|(name, _)| IMAGE_FORMAT_EXTENSIONS.contains(&name.as_str())) {
+            match extension.get("source").and_then(serde_json::Value::as_u64) {
+                Some(source) if (source as usize) < images => {}
+                Some(source) => {
+                    bail!(
+                        "invalid glTF: textures[{t}].extensions.{name}.source is {source}, but there are {images} images"
+                    )
+                }
+                None => bail!("invalid glTF: textures[{t}].extensions.{name} has no source"),
+            }
+        }
+    }
+    Ok(())
+}
+
 /// The validated document of `json`, whose required extensions are vetted
 /// (`check_required_extensions`): the gltf crate refuses every one it does
 /// not implement itself, quantization and instancing included, which bake
@@ -183,6 +211,7 @@ fn validate(json: &serde_json::Value) -> Result<gltf::Document> {
     vetted.as_object_mut().map(|root| root.remove("extensionsRequired"));
     let root: gltf::json::Root = serde_json::from_value(vetted).map_err(|e| anyhow!("invalid glTF JSON: {e}"))?;
     check_unvalidated(&root)?;
+    check_texture_extension_sources(json)?;
     use gltf::json::validation::{Error, Validate};
     let mut errors = Vec::new();
     root.validate(&root, gltf::json::Path::new, &mut |path, error| errors.push((path(), error)));
