@@ -523,6 +523,21 @@ impl SceneBuilder {
         self.materials[material]["pbrMetallicRoughness"]["baseColorTexture"] = info;
     }
 
+    /// Makes `material` a specular-glossiness one
+    /// (KHR_materials_pbrSpecularGlossiness) whose diffuse colour is
+    /// `diffuse`, times `texture` when given, and leaves its metal-rough
+    /// fallback white, as some exporters did.
+    pub fn specular_glossiness(&mut self, material: usize, diffuse: [f32; 4], texture: Option<usize>) {
+        let mut extension = json!({ "diffuseFactor": diffuse, "specularFactor": [0.04, 0.04, 0.04] });
+        if let Some(texture) = texture {
+            extension["diffuseTexture"] = json!({ "index": texture });
+        }
+        let material = &mut self.materials[material];
+        material["pbrMetallicRoughness"] = json!({ "baseColorFactor": [1.0, 1.0, 1.0, 1.0] });
+        let extensions = material.as_object_mut().unwrap().entry("extensions").or_insert_with(|| json!({}));
+        extensions["KHR_materials_pbrSpecularGlossiness"] = extension;
+    }
+
     /// Sets `material`'s emitted radiance (linear RGB, any magnitude).
     pub fn set_emission(&mut self, material: usize, emission: [f32; 3]) {
         let strength = emission.iter().cloned().fold(1.0f32, f32::max);
@@ -546,8 +561,10 @@ impl SceneBuilder {
 
     fn document(&self) -> Value {
         let mut extensions_used = Vec::new();
-        if self.materials.iter().any(|m| m.get("extensions").is_some()) {
-            extensions_used.push("KHR_materials_emissive_strength");
+        for extension in ["KHR_materials_emissive_strength", "KHR_materials_pbrSpecularGlossiness"] {
+            if self.materials.iter().any(|m| m.pointer(&format!("/extensions/{extension}")).is_some()) {
+                extensions_used.push(extension);
+            }
         }
         if self.materials.iter().any(|m| m.pointer("/pbrMetallicRoughness/baseColorTexture/extensions").is_some()) {
             extensions_used.push("KHR_texture_transform");

@@ -313,10 +313,7 @@ fn material_notices(source: &SourceAsset, materials: &[Material], used: &[usize]
             }
         }
         let material = source.document.materials().nth(m).expect("a used material exists");
-        let textures = [
-            ("base colour", material.pbr_metallic_roughness().base_color_texture()),
-            ("emissive", material.emissive_texture()),
-        ];
+        let textures = [("base colour", base_colour(&material).1), ("emissive", material.emissive_texture())];
         for (kind, info) in textures.into_iter().filter_map(|(kind, info)| Some((kind, info?))) {
             if let Err(extension) = texture_image(&source.json, &info.texture()) {
                 notices.push(format!(
@@ -332,10 +329,11 @@ fn material_notices(source: &SourceAsset, materials: &[Material], used: &[usize]
 
 fn material(json: &serde_json::Value, m: gltf::Material) -> Material {
     let strength = m.emissive_strength().unwrap_or(1.0);
+    let (base_color, base_color_texture) = base_colour(&m);
     Material {
         name: m.name().map(str::to_string),
-        base_color: m.pbr_metallic_roughness().base_color_factor(),
-        base_color_texture: m.pbr_metallic_roughness().base_color_texture().and_then(|info| texture_ref(json, &info)),
+        base_color,
+        base_color_texture: base_color_texture.and_then(|info| texture_ref(json, &info)),
         emission: m.emissive_factor().map(|e| e * strength),
         emissive_texture: m.emissive_texture().and_then(|info| texture_ref(json, &info)),
         alpha: match m.alpha_mode() {
@@ -344,6 +342,17 @@ fn material(json: &serde_json::Value, m: gltf::Material) -> Material {
             gltf::material::AlphaMode::Blend => AlphaMode::Blend,
         },
         double_sided: m.double_sided(),
+    }
+}
+
+/// The material's base colour factor and texture: the diffuse ones of
+/// KHR_materials_pbrSpecularGlossiness where the material has them (what
+/// the viewers that read the extension show; an exporter's metal-rough
+/// fallback beside it may be anything), else pbrMetallicRoughness's.
+fn base_colour<'a>(m: &gltf::Material<'a>) -> ([f32; 4], Option<gltf::texture::Info<'a>>) {
+    match m.pbr_specular_glossiness() {
+        Some(sg) => (sg.diffuse_factor(), sg.diffuse_texture()),
+        None => (m.pbr_metallic_roughness().base_color_factor(), m.pbr_metallic_roughness().base_color_texture()),
     }
 }
 

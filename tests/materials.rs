@@ -119,6 +119,22 @@ fn a_webp_only_texture_is_decoded_as_its_png_is() {
 }
 
 #[test]
+fn a_specular_glossiness_material_bakes_its_diffuse_colour() {
+    // KHR_materials_pbrSpecularGlossiness: diffuse factor × diffuse texture
+    // is the albedo; the white metal-rough fallback beside it is not.
+    let texels = albedos(&quad(|b, m| {
+        let t = b.png_texture(&halves([255, 255, 255, 255], [128, 128, 128, 255]), 33071);
+        b.specular_glossiness(m, [0.2, 0.4, 0.6, 1.0], Some(t));
+    }));
+    for (p, albedo, _) in texels.iter().filter(|(p, _, _)| p.x.abs() > 0.3) {
+        let texture = if p.x < 0.0 { 1.0 } else { 0.2158 };
+        for (c, diffuse) in [0.2, 0.4, 0.6].into_iter().enumerate() {
+            assert!((albedo[c] - diffuse * texture).abs() < 0.003, "at {p}: {albedo:?}");
+        }
+    }
+}
+
+#[test]
 fn emissive_texture_scales_emission() {
     let texels = albedos(&quad(|b, m| {
         b.set_emission(m, [4.0, 4.0, 4.0]);

@@ -22,6 +22,7 @@ use base64::Engine as _;
 const SUPPORTED_REQUIRED: &[&str] = &[
     "KHR_materials_emissive_strength",
     "KHR_materials_unlit",
+    "KHR_materials_pbrSpecularGlossiness",
     "KHR_texture_transform",
     "KHR_mesh_quantization",
     "KHR_materials_variants",
