@@ -257,7 +257,8 @@ fn collect_mesh(
                 colors,
                 indices,
                 mirrored,
-                material: primitive.material().index(),
+                material: material_before_a_bake(&source.json, mesh.index(), primitive.index())
+                    .or(primitive.material().index()),
             };
             Ok(Gathered { primitive: baked, world, what: what.clone() })
         };
@@ -269,6 +270,21 @@ fn collect_mesh(
         gathered.push(read);
     }
     Ok(())
+}
+
+/// In a file bake wrote, the material a primitive had before: the one its
+/// `pbr+lightmap` variant maps it to. Its default material shows the baked
+/// light, which is no albedo to bake again.
+fn material_before_a_bake(json: &serde_json::Value, mesh: usize, primitive: usize) -> Option<usize> {
+    let variants = json.pointer("/extensions/KHR_materials_variants/variants")?.as_array()?;
+    let lightmapped = variants.iter().position(|v| v["name"] == crate::export::materials::VARIANT_LIGHTMAPPED)?;
+    let pointer = format!("/meshes/{mesh}/primitives/{primitive}/extensions/KHR_materials_variants/mappings");
+    let mappings = json.pointer(&pointer)?.as_array()?;
+    let mapping = mappings
+        .iter()
+        .find(|m| m["variants"].as_array().is_some_and(|v| v.iter().any(|v| v.as_u64() == Some(lightmapped as u64))))?;
+    let material = mapping["material"].as_u64()? as usize;
+    json["materials"].get(material).map(|_| material)
 }
 
 /// Strips and fans as a plain triangle list, keeping each triangle's facing.

@@ -295,3 +295,62 @@ fn morph_targets_are_kept_and_follow_the_unwrapped_vertices() {
     }
     assert!(box_primitive["attributes"]["TEXCOORD_2"].is_u64(), "the input's TEXCOORD_1 moved");
 }
+
+#[test]
+fn a_cut_out_keeps_its_alpha_texture_in_the_baked_material() {
+    // A fence quad standing on a ground, alpha-masked by a striped texture,
+    // with vertex colours; the ground is plain.
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene = SceneBuilder::new();
+    scene.object("ground", &MeshData::plane(4.0, 4.0, 1), [0.6, 0.6, 0.6, 1.0], [0.0; 3], Placement::default());
+    let fence = scene.material("fence", [0.8, 0.7, 0.5, 0.9], [0.0; 3]);
+    let stripes =
+        image::RgbaImage::from_fn(64, 64, |x, _| image::Rgba([200, 200, 200, if x % 16 < 8 { 255 } else { 0 }]));
+    let texture = scene.png_texture(&stripes, 10497);
+    scene.base_color_texture(fence, texture, None);
+    scene.alpha_mask(fence, 0.4);
+    let quad = scene.mesh("fence", &MeshData::plane(2.0, 1.0, 1), Some(fence));
+    scene.vertex_colors(quad, &[[1.0, 0.5, 0.5]; 4]);
+    let upright = glam::Quat::from_rotation_x(std::f32::consts::FRAC_PI_2);
+    scene.node("fence", quad, Placement::at(glam::Vec3::new(0.0, 0.5, 0.0)).rotated(upright));
+    let input = dir.path().join("fence.glb");
+    std::fs::write(&input, scene.to_glb()).unwrap();
+    let out = dir.path().join("out");
+    bake(&input, &out, &[]);
+    let baked = out.join("fence.glb");
+    assert_valid(&baked);
+
+    let asset = bake::asset::SourceAsset::load(&baked).unwrap();
+    let json = &asset.json;
+    let material_of =
+        |mesh: usize| &json["materials"][json["meshes"][mesh]["primitives"][0]["material"].as_u64().unwrap() as usize];
+    // The ground's baked material is unlit, the atlas its base colour.
+    let ground = material_of(0);
+    assert!(ground["extensions"].get("KHR_materials_unlit").is_some(), "{ground}");
+    let atlas = ground["pbrMetallicRoughness"]["baseColorTexture"].clone();
+    assert_eq!(atlas["texCoord"], 1);
+    // The fence's shows the same atlas as emission over a black base colour
+    // that keeps the stripes (and the factor's alpha) for its cut-out.
+    let cut_out = material_of(1);
+    eprintln!("{cut_out:#}");
+    assert_eq!(cut_out["emissiveTexture"], atlas);
+    assert_eq!(cut_out["emissiveFactor"], serde_json::json!([1.0, 1.0, 1.0]));
+    let base = &cut_out["pbrMetallicRoughness"];
+    assert_eq!(base["baseColorFactor"], serde_json::json!([0.0, 0.0, 0.0, 0.8999999761581421]));
+    assert_eq!(base["baseColorTexture"], serde_json::json!({ "index": texture }));
+    assert_eq!((&cut_out["alphaMode"], &cut_out["alphaCutoff"]), (&"MASK".into(), &0.4f32.into()));
+    assert_eq!(cut_out["extensions"]["KHR_materials_specular"]["specularFactor"], 0.0);
+    assert!(cut_out["extensions"].get("KHR_materials_unlit").is_none());
+    let used = json["extensionsUsed"].as_array().unwrap();
+    assert!(used.contains(&"KHR_materials_specular".into()), "{used:?}");
+    assert!(json.get("extensionsRequired").is_none());
+
+    // Baking the baked file again reads each primitive's own material (its
+    // `pbr+lightmap` variant), not the baked one.
+    let again = bake::import::from_asset(asset).unwrap();
+    let names: Vec<_> = again.primitives.iter().map(|p| again.materials[p.material.unwrap()].name.clone()).collect();
+    assert_eq!(names, [Some("ground".to_string()), Some("fence".to_string())]);
+    let fence = &again.materials[again.primitives[1].material.unwrap()];
+    assert_eq!(fence.base_color, [0.8, 0.7, 0.5, 0.9]);
+    assert!(fence.base_color_texture.is_some());
+}

@@ -205,16 +205,24 @@ pub fn linear_to_srgb8(linear: f32) -> u8 {
 
 /// The HDR lightmap (L_lm per texel) and the baked beauty image
 /// (albedo·L_lm + emission), both dilated by `rings` texels, then stitched
-/// along `seams`; with what dilation and stitching did.
-pub fn images(texels: &TexelSet, solution: &Solution, rings: u32, seams: &[SeamEdge]) -> (Image, Image, Fixups) {
+/// along `seams`; with what dilation and stitching did. `as_emission[p]`
+/// says that primitive `p`'s baked material shows the image as emission.
+pub fn images(
+    texels: &TexelSet,
+    solution: &Solution,
+    as_emission: &[bool],
+    rings: u32,
+    seams: &[SeamEdge],
+) -> (Image, Image, Fixups) {
     let mut lightmap = Image::from_texels(texels, |i| solution.lightmap[i]);
-    // A viewer multiplies the baked texture by the primitive's COLOR_0 as it
-    // would the base colour, so the texture holds the albedo without it (and
-    // the emission divided by it, where it is not near black).
+    // A viewer multiplies a base colour texture by the primitive's COLOR_0,
+    // so there the texture holds the albedo without it (and the emission
+    // divided by it, where it is not near black). Emission it leaves alone.
     let mut beauty = Image::from_texels(texels, |i| {
         let t = &texels.texels[i];
         let l = solution.lightmap[i];
-        let tint = texels.tint.get(i).copied().unwrap_or([1.0; 3]);
+        let multiplied = !as_emission.get(t.primitive as usize).copied().unwrap_or(false);
+        let tint = texels.tint.get(i).copied().filter(|_| multiplied).unwrap_or([1.0; 3]);
         [0, 1, 2].map(|c| {
             let shown = tint[c].max(1.0 / 255.0);
             t.albedo[c] / shown * l[c] + t.emission[c] / shown

@@ -5,6 +5,9 @@
 //!   (KHR_materials_unlit) with the baked atlas (albedo·L_lm + emission,
 //!   8-bit sRGB) as base colour on texCoord 1. three.js, Babylon.js,
 //!   model-viewer and Blender show it exactly as baked, with no plugin.
+//!   A cut-out whose alpha comes from its base colour texture shows the
+//!   atlas as emission instead, keeping that texture for its alpha
+//!   (`push_baked`).
 //! - `pbr+lightmap`: the input's own material, intact, with the lightmap
 //!   referenced through `MOZ_lightmap` {index, texCoord: 1, intensity}, an
 //!   RGBM-encoded PNG of L_lm (decode range in the texture's extras).
@@ -47,16 +50,17 @@ pub struct Textures {
 pub fn assign(document: &mut Document, rewritten: &[Rewritten], textures: Textures) {
     let variants = add_variants(document);
     let others = materials_of_other_primitives(document, rewritten);
-    let mut unlit: BTreeMap<Option<usize>, usize> = BTreeMap::new();
+    let mut unlit: BTreeMap<(Option<usize>, Option<u32>), usize> = BTreeMap::new();
     let mut lightmapped: BTreeMap<(Option<usize>, Option<u32>), usize> = BTreeMap::new();
     for r in rewritten {
         let primitive = &mut document.json["meshes"][r.mesh]["primitives"][r.primitive];
         // Re-baking a baked file: its `pbr+lightmap` variant holds the original material.
         let material = take_mappings(primitive, variants).or(r.material);
-        let baked = *unlit.entry(material).or_insert_with(|| push_unlit(document, material, textures.baked));
         // A material follows moved UVs only if it samples texCoord 1.
         let original = material.map(|m| document.json["materials"][m].clone());
         let remap = r.moved_uv1_to.filter(|_| original.as_ref().is_some_and(|m| uses_texcoord(m, 1)));
+        let baked =
+            *unlit.entry((material, remap)).or_insert_with(|| push_baked(document, material, remap, textures.baked));
         let pbr = *lightmapped
             .entry((material, remap))
             .or_insert_with(|| lightmapped_material(document, material, remap, &others, textures.lightmap));
@@ -137,22 +141,55 @@ fn materials_of_other_primitives(document: &Document, rewritten: &[Rewritten]) -
     used
 }
 
-/// The unlit material showing the baked atlas, keeping the original's
-/// alpha, alpha mode and sidedness.
-fn push_unlit(document: &mut Document, original: Option<usize>, texture: usize) -> usize {
+/// Whether `material` takes its alpha from its base colour texture in a
+/// cut-out or a blend (alphaMode MASK or BLEND): its baked form then has to
+/// keep that texture, on its own UV set, for the alpha.
+pub fn alpha_from_texture(material: &Value) -> bool {
+    matches!(material.get("alphaMode").and_then(Value::as_str), Some("MASK" | "BLEND"))
+        && material.pointer("/pbrMetallicRoughness/baseColorTexture").is_some()
+}
+
+/// The material showing the baked atlas, keeping the original's alpha,
+/// alpha mode and sidedness: unlit with the atlas as base colour; or, where
+/// the alpha comes from the base colour texture (`alpha_from_texture`),
+/// the atlas as emission over a black base colour that keeps that texture
+/// for its alpha (an unlit material has one texture, and the atlas cannot
+/// hold a cut-out finer than its texels), with KHR_materials_specular's
+/// factor 0 so that viewers add no reflection to what was baked.
+fn push_baked(document: &mut Document, original: Option<usize>, remap: Option<u32>, texture: usize) -> usize {
     let source = original.map(|m| document.json["materials"][m].clone()).unwrap_or(Value::Null);
     let name = base_name(&source, "default".into());
     let alpha = source.pointer("/pbrMetallicRoughness/baseColorFactor/3").and_then(Value::as_f64).unwrap_or(1.0);
-    let mut material = json!({
-        "name": format!("{name} ({VARIANT_BAKED})"),
-        "pbrMetallicRoughness": {
-            "baseColorFactor": [1.0, 1.0, 1.0, alpha],
-            "baseColorTexture": { "index": texture, "texCoord": 1 },
+    let atlas = json!({ "index": texture, "texCoord": 1 });
+    let mut material = if alpha_from_texture(&source) {
+        let mut pbr = json!({
+            "baseColorFactor": [0.0, 0.0, 0.0, alpha],
+            "baseColorTexture": source["pbrMetallicRoughness"]["baseColorTexture"],
             "metallicFactor": 0.0,
             "roughnessFactor": 1.0,
-        },
-        "extensions": { "KHR_materials_unlit": {} },
-    });
+        });
+        if let Some(to) = remap {
+            remap_texcoord(&mut pbr, 1, to as u64);
+        }
+        document.use_extension("KHR_materials_specular");
+        json!({
+            "pbrMetallicRoughness": pbr,
+            "emissiveTexture": atlas,
+            "emissiveFactor": [1.0, 1.0, 1.0],
+            "extensions": { "KHR_materials_specular": { "specularFactor": 0.0 } },
+        })
+    } else {
+        json!({
+            "pbrMetallicRoughness": {
+                "baseColorFactor": [1.0, 1.0, 1.0, alpha],
+                "baseColorTexture": atlas,
+                "metallicFactor": 0.0,
+                "roughnessFactor": 1.0,
+            },
+            "extensions": { "KHR_materials_unlit": {} },
+        })
+    };
+    material["name"] = json!(format!("{name} ({VARIANT_BAKED})"));
     for key in ["doubleSided", "alphaMode", "alphaCutoff"] {
         if let Some(value) = source.get(key) {
             material[key] = value.clone();

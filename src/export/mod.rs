@@ -68,7 +68,11 @@ pub struct ExportStats {
 pub fn run(baked: &Baked, options: &ExportOptions, dir: &Path) -> Result<ExportStats> {
     let (scene, atlas) = (&baked.scene, &baked.atlas);
     let seam_edges = seams::find(scene, atlas);
-    let (lightmap, beauty, fixups) = lightmap::images(&baked.texels, &baked.solution, options.dilation, &seam_edges);
+    let material_json = |m: Option<usize>| m.and_then(|m| scene.source.json["materials"].get(m));
+    let as_emission: Vec<bool> =
+        scene.primitives.iter().map(|p| material_json(p.material).is_some_and(materials::alpha_from_texture)).collect();
+    let (lightmap, beauty, fixups) =
+        lightmap::images(&baked.texels, &baked.solution, &as_emission, options.dilation, &seam_edges);
     let exr_name = format!("{}.lightmap0.exr", scene.name);
     let exr = lightmap.encode_exr()?;
     let beauty_png = beauty.encode_png(options.exposure.exp2())?;
