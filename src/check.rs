@@ -482,8 +482,8 @@ pub struct Balance {
 /// solver says landed.
 ///
 /// Let P_recv, P_emit, P_refl be the atlas's received, emitted and reflected
-/// power (luminance) and P_direct the direct pass's received power (0
-/// without one). Surfaces received P_bounce = P_recv − P_direct from other
+/// power (luminance) and P_direct the power the direct pass and the
+/// punctual lights' pass delivered (0 without them). Surfaces received P_bounce = P_recv − P_direct from other
 /// surfaces, and sent out P_sent = P_emit + P_refl. Progressive refinement
 /// shoots part of P_sent, of which the share `shot_closure` landed; the
 /// ambient term spreads the unshot rest with `closure` (reflections of it
@@ -496,7 +496,8 @@ pub struct Balance {
 pub fn energy_balance(scene: &SceneReport) -> Result<Balance, String> {
     let a = &scene.atlas.energy;
     let received = luminance(a.power_received);
-    let direct = scene.direct.as_ref().map_or(0.0, |d| luminance(d.power_received));
+    let direct = scene.direct.as_ref().map_or(0.0, |d| luminance(d.power_received))
+        + scene.punctual.as_ref().map_or(0.0, |p| luminance(p.power_received));
     let (received_change, reflected_change) = scene
         .contact
         .as_ref()

@@ -102,6 +102,11 @@ pub struct Args {
     #[arg(long)]
     pub no_contact_trace: bool,
 
+    /// Leave the scene's punctual lights (KHR_lights_punctual) out of the bake; they stay in the output (by default
+    /// they are baked as direct light, with exact shadows, besides the environment and emissive surfaces)
+    #[arg(long)]
+    pub no_punctual_lights: bool,
+
     /// Stop bouncing light when the unshot power, each patch's weighted by how much of its hemisphere the scene
     /// covers, falls below this fraction of the power put in, weighted the same way; the rest is added as an ambient
     /// term and reported
@@ -290,6 +295,7 @@ impl Args {
                     shadow_map_size: self.shadow_map_size,
                     supersample: !self.no_supersample,
                     contact: !self.no_contact_trace,
+                    punctual: !self.no_punctual_lights,
                     bounce: BounceOptions {
                         tolerance: self.tolerance,
                         max_shots: self.max_shots,

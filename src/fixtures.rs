@@ -290,6 +290,7 @@ pub struct SceneBuilder {
     textures: Vec<Value>,
     samplers: Vec<Value>,
     animations: Vec<Value>,
+    lights: Vec<Value>,
 }
 
 impl SceneBuilder {
@@ -424,7 +425,20 @@ impl SceneBuilder {
 
     /// Adds a root node drawing `mesh` at `placement`.
     pub fn node(&mut self, name: &str, mesh: usize, placement: Placement) -> usize {
-        let mut node = json!({ "name": name, "mesh": mesh });
+        self.placed(json!({ "name": name, "mesh": mesh }), placement)
+    }
+
+    /// Adds a KHR_lights_punctual light (`light`: its object, such as
+    /// `{"type": "point", "intensity": 10.0}`) on a root node at `placement`,
+    /// which it shines from along the node's −Z; returns the node's index.
+    pub fn light(&mut self, name: &str, light: Value, placement: Placement) -> usize {
+        self.lights.push(light);
+        let node = json!({ "name": name, "extensions": { "KHR_lights_punctual": { "light": self.lights.len() - 1 } } });
+        self.placed(node, placement)
+    }
+
+    /// Adds `node` as a root node with `placement`'s transform; returns its index.
+    fn placed(&mut self, mut node: Value, placement: Placement) -> usize {
         if placement.translation != Vec3::ZERO {
             node["translation"] = json!(placement.translation.to_array());
         }
@@ -572,6 +586,9 @@ impl SceneBuilder {
         if self.nodes.iter().any(|n| n.pointer("/extensions/EXT_mesh_gpu_instancing").is_some()) {
             extensions_used.push("EXT_mesh_gpu_instancing");
         }
+        if !self.lights.is_empty() {
+            extensions_used.push("KHR_lights_punctual");
+        }
         let mut extensions_required = Vec::new();
         if self.textures.iter().any(|t| t.pointer("/extensions/EXT_texture_webp").is_some()) {
             extensions_used.push("EXT_texture_webp");
@@ -596,6 +613,9 @@ impl SceneBuilder {
         }
         if !self.animations.is_empty() {
             doc["animations"] = json!(self.animations);
+        }
+        if !self.lights.is_empty() {
+            doc["extensions"] = json!({ "KHR_lights_punctual": { "lights": self.lights } });
         }
         if !self.images.is_empty() {
             doc["images"] = json!(self.images);

@@ -3,7 +3,8 @@
 //! transforms applied, each GPU instance (EXT_mesh_gpu_instancing) as a
 //! primitive of its own, with its material. A morphing mesh is baked at its
 //! static weights and an animated node in its rest pose, each with a
-//! notice. What cannot be baked (points, lines, skinned meshes) is left out
+//! notice. The KHR_lights_punctual lights the nodes place are collected
+//! too (`Scene::lights`). What cannot be baked (points, lines, skinned meshes) is left out
 //! with a notice, never silently.
 //!
 //! Transforms are composed and applied in f64 and positions stored in f32
@@ -18,7 +19,9 @@ use gltf::mesh::Mode;
 
 use crate::asset::{SourceAsset, accessor, instancing, morph};
 use crate::repeats;
-use crate::scene::{AlphaMode, LinearImage, Material, Scene, ScenePrimitive, TextureRef, choose_origin};
+use crate::scene::{
+    AlphaMode, LightKind, LinearImage, Material, PunctualLight, Scene, ScenePrimitive, TextureRef, choose_origin,
+};
 
 /// Loads `path` (`.gltf` or `.glb`) into a `Scene`. Errors name the file.
 pub fn load(path: &Path) -> Result<Scene> {
@@ -36,6 +39,8 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
 
     let mut notices = Vec::new();
     let mut gathered = Vec::new();
+    // Punctual lights, positioned in world coordinates until the origin is known.
+    let mut lights = Vec::new();
     let animated = morph::animated_nodes(&source.json);
     // Animated nodes with baked geometry at or below them (the nearest such node).
     let mut moved = std::collections::BTreeSet::new();
@@ -52,8 +57,12 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
         let local = node.transform().matrix().map(|column| column.map(f64::from));
         let world = parent * DMat4::from_cols_array_2d(&local);
         let animated_above = Some(node.index()).filter(|n| animated.contains_key(n)).or(animated_above);
-        if let (Some(_), None, Some(animated)) = (node.mesh(), node.skin(), animated_above) {
+        let baked_here = node.mesh().is_some() && node.skin().is_none() || node.light().is_some();
+        if let (true, Some(animated)) = (baked_here, animated_above) {
             moved.insert(animated);
+        }
+        if let Some(light) = node.light() {
+            lights.extend(punctual_light(&node, &light, world)?);
         }
         if let Some(mesh) = node.mesh() {
             match instancing::read(&source, node.index())? {
@@ -90,6 +99,9 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
         bail!("the scene has no triangle geometry to bake");
     }
     let (origin, primitives) = finish_primitives(gathered, &mut notices)?;
+    for light in &mut lights {
+        light.position -= DVec3::from(origin);
+    }
 
     let materials: Vec<Material> = document.materials().map(|m| material(&source.json, m)).collect();
     let mut used: Vec<usize> = primitives.iter().filter_map(|p| p.material).collect();
@@ -98,16 +110,60 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
     notices.extend(material_notices(&source, &materials, &used));
     let (images, image_notices) = decode_images(&source, &materials, &used);
     notices.extend(image_notices);
-    let lights = source.json.pointer("/extensions/KHR_lights_punctual/lights").and_then(|l| l.as_array());
-    if let Some(lights) = lights.filter(|l| !l.is_empty()) {
-        notices.push(format!(
-            "{} punctual light(s) (KHR_lights_punctual) are kept in the output but not baked: \
-             the environment and emissive surfaces light the bake",
-            lights.len()
-        ));
-    }
     let name = source.path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "scene".into());
-    Ok(Scene { name, source, origin, primitives, materials, images, notices })
+    Ok(Scene { name, source, origin, primitives, materials, images, lights, notices })
+}
+
+/// The KHR_lights_punctual light `light` where `node` (of world transform
+/// `world`) places it, in world coordinates; `None` for one that gives no
+/// light. Errors name the light and the node.
+fn punctual_light(
+    node: &gltf::Node,
+    light: &gltf::khr_lights_punctual::Light,
+    world: DMat4,
+) -> Result<Option<PunctualLight>> {
+    use gltf::khr_lights_punctual::Kind;
+    let name = light.name().map(|n| format!(" '{n}'")).unwrap_or_default();
+    let node_name = node.name().map(|n| format!(" '{n}'")).unwrap_or_default();
+    let what = format!("light {}{name} on node {}{node_name}", light.index(), node.index());
+    let intensity = DVec3::from(light.color().map(f64::from)) * light.intensity() as f64;
+    if !intensity.is_finite() || intensity.min_element() < 0.0 {
+        bail!("{what}: colour × intensity {intensity} is negative or not finite");
+    }
+    let range = light.range().map(f64::from);
+    if let Some(range) = range.filter(|r| !(r.is_finite() && *r > 0.0)) {
+        bail!("{what}: range {range} is not a positive distance");
+    }
+    let kind = match light.kind() {
+        Kind::Directional => LightKind::Directional,
+        Kind::Point => LightKind::Point,
+        Kind::Spot { inner_cone_angle, outer_cone_angle } => {
+            let (inner, outer) = (inner_cone_angle as f64, outer_cone_angle as f64);
+            if !(0.0 <= inner && inner < outer && outer <= std::f64::consts::FRAC_PI_2) {
+                bail!("{what}: spot cone angles inner {inner} and outer {outer} are not 0 ≤ inner < outer ≤ π/2");
+            }
+            LightKind::Spot { inner_cone: inner, outer_cone: outer }
+        }
+    };
+    // A light shines along its node's −Z, from its node's origin.
+    let position = world.transform_point3(DVec3::ZERO);
+    let direction = world.transform_vector3(DVec3::NEG_Z).try_normalize();
+    let (Some(direction), true) = (direction, position.is_finite()) else {
+        bail!("{what}: the node's transform gives no position or direction (it scales to zero or overflows)");
+    };
+    if intensity == DVec3::ZERO {
+        return Ok(None);
+    }
+    Ok(Some(PunctualLight {
+        node: node.index(),
+        light: light.index(),
+        name: light.name().map(str::to_string),
+        kind,
+        position,
+        direction,
+        intensity,
+        range,
+    }))
 }
 
 fn describe(node: &gltf::Node, mesh: &gltf::Mesh, instance: Option<usize>) -> String {

@@ -98,7 +98,7 @@ pub fn check_adapter_limits(gpu: &Gpu, options: &BakeOptions) -> Result<()> {
 /// Unwraps, texelizes and solves `scene` under `lights` (if any).
 pub fn bake_scene(
     gpu: &Gpu,
-    scene: Scene,
+    mut scene: Scene,
     lights: Option<&LightSet>,
     options: &BakeOptions,
     progress: &mut dyn Progress,
@@ -107,6 +107,10 @@ pub fn bake_scene(
     let name = scene.name.clone();
     let mut stages = Vec::new();
     let mut notices = scene.notices.clone();
+    if let Some(notice) = punctual_notice(&mut scene, options.solve.punctual) {
+        progress.notice(&notice);
+        notices.push(notice);
+    }
     let (atlas, uv1_reused) = stage(gpu, progress, &mut stages, &name, "unwrap", |_| {
         // Repeated triangles share their first copy's UVs: unwrap without them, then put them back.
         let unique: Vec<Vec<u32>> = scene.primitives.iter().map(|p| repeats::without(&p.indices, &p.repeats)).collect();
@@ -179,6 +183,9 @@ pub fn bake_scene(
                 d.shadow_map_size
             ));
         }
+        if let Some(p) = &solution.punctual {
+            parts.push(format!("{} punctual lights along {} shadow rays in {:.1} s", p.lights, p.rays, p.seconds));
+        }
         if let Some(b) = &solution.bounce {
             parts.push(format!(
                 "{} shots from {} patches ({}), {:.2}% unshot",
@@ -205,6 +212,27 @@ pub fn bake_scene(
         error: probes.lightmap_error(&solution.lightmap),
     });
     Ok(Baked { scene, atlas, texels, solution, stages, notices, reference, uv1_reused })
+}
+
+/// What happens to the scene's punctual lights, for the user: baked, or
+/// (`bake` false) kept in the output only, in which case they leave the
+/// scene the solve sees.
+fn punctual_notice(scene: &mut Scene, bake: bool) -> Option<String> {
+    let count = scene.lights.len();
+    if count == 0 {
+        return None;
+    }
+    if !bake {
+        scene.lights.clear();
+        return Some(format!(
+            "{count} punctual light(s) (KHR_lights_punctual) are kept in the output but not baked \
+             (--no-punctual-lights)"
+        ));
+    }
+    Some(format!(
+        "{count} punctual light(s) (KHR_lights_punctual) are baked as direct light; they stay in the output, so an \
+         engine that also lights the baked surfaces with them counts their light twice"
+    ))
 }
 
 /// The scene's own TEXCOORD_1 as the atlas (`--keep-uv1`), or why not, naming
@@ -326,14 +354,19 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
             progress.notice(notice);
         }
         staging.protect(export::source_files(&scene.source));
-        let emissive = scene.materials.iter().any(|m| m.emission.iter().any(|&e| e > 0.0));
+        // Light sources of the scene's own: emissive materials, punctual lights it bakes.
+        let own_light = scene.materials.iter().any(|m| m.emission.iter().any(|&e| e > 0.0))
+            || config.bake.solve.punctual && !scene.lights.is_empty();
         match (&environment, &config.environment) {
-            (None, _) if !emissive => {
-                bail!("input '{}': nothing lights the scene: give --env or use emissive materials", input.display())
+            (None, _) if !own_light => {
+                bail!(
+                    "input '{}': nothing lights the scene: give --env, or use emissive materials or punctual lights",
+                    input.display()
+                )
             }
-            (Some((lights, _)), Some(env)) if lights.lights.is_empty() && !emissive => bail!(
+            (Some((lights, _)), Some(env)) if lights.lights.is_empty() && !own_light => bail!(
                 "environment '{}': the map has no energy (every texel is black) and input '{}' has no emissive \
-                 materials: nothing lights the scene",
+                 materials or punctual lights: nothing lights the scene",
                 env.display(),
                 input.display()
             ),
@@ -472,6 +505,7 @@ fn scene_report(
             seams: exported.stitch.clone(),
         },
         direct: baked.solution.direct.clone(),
+        punctual: baked.solution.punctual.clone(),
         bounce: baked.solution.bounce.clone(),
         contact: baked.solution.contact.clone(),
         energy: report::primitive_energy(&baked.texels, &baked.solution, &keys, &names),

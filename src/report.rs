@@ -22,13 +22,13 @@ use crate::gpu::{AdapterDescription, Gpu};
 use crate::reference::{Reference, ReferenceOptions, ReferencePoint};
 use crate::scene::{PrimitiveKey, Scene};
 use crate::solve::bounce::Probes;
-use crate::solve::{BounceStats, ContactStats, Skipped, Solution, direct::DirectStats};
+use crate::solve::{BounceStats, ContactStats, Skipped, Solution, direct::DirectStats, punctual::PunctualStats};
 use crate::texelize::TexelSet;
 
 /// Version of the report's layout; bumped on any change to it. Version 4
-/// added a primitive's `instance` and the scene's `contact`; `bake check`
-/// still reads version 3.
-pub const SCHEMA_VERSION: u32 = 4;
+/// added a primitive's `instance` and the scene's `contact`, version 5 the
+/// scene's `punctual`; `bake check` still reads version 3.
+pub const SCHEMA_VERSION: u32 = 5;
 
 /// The oldest version `bake check` reads: every later change only added
 /// optional fields.
@@ -192,6 +192,10 @@ pub struct SceneReport {
     pub atlas: AtlasReport,
     pub texels: TexelReport,
     pub direct: Option<DirectStats>,
+    /// The punctual lights' pass, when the scene has lights and it ran
+    /// (absent in version 3 and 4 reports).
+    #[serde(default)]
+    pub punctual: Option<PunctualStats>,
     /// The bounce pass: shots, why it stopped, unshot energy left and the
     /// ambient term that stands in for it, and the convergence trace.
     pub bounce: Option<BounceStats>,

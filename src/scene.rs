@@ -153,6 +153,84 @@ pub struct LinearImage {
     pub pixels: Vec<[f32; 4]>,
 }
 
+/// The shape of a punctual light's beam (KHR_lights_punctual's types).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LightKind {
+    /// Parallel light along the light's direction, from infinitely far away;
+    /// its intensity is illuminance (lux) on a surface facing it.
+    Directional,
+    /// Light from a point in every direction; intensity in candela.
+    Point,
+    /// A point's light within a cone about the light's direction, full up to
+    /// `inner_cone` (radians off its axis) and falling to 0 at `outer_cone`.
+    Spot { inner_cone: f64, outer_cone: f64 },
+}
+
+/// A KHR_lights_punctual light where its node places it: a light source
+/// the bake's punctual pass traces (`solve::punctual`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PunctualLight {
+    /// The node that places it, and its index in the extension's list.
+    pub node: usize,
+    pub light: usize,
+    pub name: Option<String>,
+    pub kind: LightKind,
+    /// In scene coordinates (world − `Scene::origin`); unused by a
+    /// directional light.
+    pub position: DVec3,
+    /// Unit direction the light shines along: its node's −Z in world space.
+    pub direction: DVec3,
+    /// Colour × intensity, linear RGB: candela for a point or spot light,
+    /// lux for a directional one.
+    pub intensity: DVec3,
+    /// Distance at which a point or spot light's influence ends, if any.
+    pub range: Option<f64>,
+}
+
+/// Light from a punctual light arriving at a point (`PunctualLight::towards`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Incident {
+    /// Unit direction from the point towards the light.
+    pub direction: DVec3,
+    /// Distance to the light (infinite for a directional one).
+    pub distance: f64,
+    /// Irradiance on a surface facing the light, before visibility:
+    /// intensity × attenuation / distance² (the intensity itself for a
+    /// directional light).
+    pub irradiance: DVec3,
+}
+
+impl PunctualLight {
+    /// The light arriving at `p` (scene coordinates), as KHR_lights_punctual
+    /// defines it: inverse-square falloff, the recommended range window
+    /// max(min(1 − (d/range)⁴, 1), 0), and a spot's angular attenuation
+    /// clamp((cos − cos outer) / (cos inner − cos outer), 0, 1)². `None`
+    /// where none arrives (outside a spot's cone, past the range, or at the
+    /// light's own position).
+    pub fn towards(&self, p: DVec3) -> Option<Incident> {
+        if self.kind == LightKind::Directional {
+            return Some(Incident { direction: -self.direction, distance: f64::INFINITY, irradiance: self.intensity });
+        }
+        let to_light = self.position - p;
+        let distance = to_light.length();
+        if !(distance > 0.0 && distance.is_finite()) {
+            return None;
+        }
+        let direction = to_light / distance;
+        let mut attenuation = 1.0 / (distance * distance);
+        if let Some(range) = self.range {
+            attenuation *= (1.0 - (distance / range).powi(4)).clamp(0.0, 1.0);
+        }
+        if let LightKind::Spot { inner_cone, outer_cone } = self.kind {
+            let (cos_inner, cos_outer) = (inner_cone.cos(), outer_cone.cos());
+            let scale = 1.0 / (cos_inner - cos_outer).max(1e-3);
+            let cone = ((self.direction.dot(-direction) - cos_outer) * scale).clamp(0.0, 1.0);
+            attenuation *= cone * cone;
+        }
+        (attenuation > 0.0).then_some(Incident { direction, distance, irradiance: self.intensity * attenuation })
+    }
+}
+
 /// A scene ready to unwrap and bake.
 pub struct Scene {
     /// Output stem (the input's file name without extension).
@@ -168,6 +246,10 @@ pub struct Scene {
     /// One per glTF image, index for index: decoded when a baked material
     /// samples it (`None` otherwise, or when it could not be decoded).
     pub images: Vec<Option<LinearImage>>,
+    /// The KHR_lights_punctual lights the default scene's nodes place, each
+    /// with light in it: the bake's light sources besides the environment
+    /// and emissive surfaces.
+    pub lights: Vec<PunctualLight>,
     /// Things left out or changed, one line each, for the user and the report.
     pub notices: Vec<String>,
 }

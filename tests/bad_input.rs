@@ -623,3 +623,23 @@ fn morph_weights_that_do_not_match_the_targets_are_refused_naming_the_node() {
     case.write("morph.glb", &scene.to_glb());
     case.refused(&["morph.glb"], "morph.glb", "node 0 lists 1 morph weights for the 2 morph targets of mesh 0");
 }
+
+#[test]
+fn punctual_lights_that_cannot_be_are_refused_naming_the_light() {
+    use bake::fixtures::{MeshData, Placement, SceneBuilder};
+    for (light, problem) in [
+        (
+            json!({ "type": "spot", "name": "torch", "spot": { "innerConeAngle": 0.6, "outerConeAngle": 0.4 } }),
+            "light 0 'torch' on node 1 'lamp': spot cone angles inner 0.6",
+        ),
+        (json!({ "type": "point", "intensity": -3.0 }), "light 0 on node 1 'lamp': colour × intensity"),
+        (json!({ "type": "point", "range": 0.0 }), "light 0 on node 1 'lamp': range 0 is not a positive distance"),
+    ] {
+        let mut scene = SceneBuilder::new();
+        scene.object("ground", &MeshData::plane(2.0, 2.0, 1), [0.5; 4], [0.0; 3], Placement::default());
+        scene.light("lamp", light, Placement::at(glam::Vec3::Y));
+        let case = Case::new();
+        case.write("lamp.glb", &scene.to_glb());
+        case.refused(&["lamp.glb"], "lamp.glb", problem);
+    }
+}

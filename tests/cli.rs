@@ -193,3 +193,43 @@ fn nothing_to_light_the_scene_is_an_error() {
     assert_one_line_error(&output, "nothing lights the scene");
     assert!(!dir.path().join("out").exists());
 }
+
+#[test]
+fn a_scene_lit_by_its_own_lamps_bakes_without_an_environment_and_keeps_its_energy_balance() {
+    use bake::fixtures::{MeshData, Placement, SceneBuilder};
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene = SceneBuilder::new();
+    scene.object("ground", &MeshData::plane(4.0, 4.0, 2), [0.6, 0.6, 0.6, 1.0], [0.0; 3], Placement::default());
+    let ball = MeshData::sphere(0.4, 24, 12);
+    scene.object("ball", &ball, [0.8, 0.3, 0.3, 1.0], [0.0; 3], Placement::at(glam::Vec3::Y * 0.4));
+    let lamp = serde_json::json!({ "type": "point", "intensity": 8.0, "color": [1.0, 0.9, 0.7] });
+    scene.light("lamp", lamp, Placement::at(glam::Vec3::new(0.5, 1.5, 0.5)));
+    std::fs::write(dir.path().join("lamp.glb"), scene.to_glb()).unwrap();
+    let args = ["lamp.glb", "-o", "out", "--max-atlas-size", "64", "--max-shots", "200", "-q"];
+    let output = bake(dir.path(), &args);
+    assert!(output.status.success(), "bake failed: {}", stderr(&output));
+    let report: Report = serde_json::from_slice(&std::fs::read(dir.path().join("out/report.json")).unwrap()).unwrap();
+    let scene = &report.scenes[0];
+    let punctual = scene.punctual.as_ref().expect("the lamp was baked");
+    assert_eq!(punctual.lights, 1);
+    assert!(punctual.power_received[0] > 0.0 && scene.bounce.is_some());
+    assert!(scene.notices.iter().any(|n| n.contains("1 punctual light(s) (KHR_lights_punctual) are baked")));
+    // The energy balance counts the lamp's light as direct light.
+    let checked =
+        Command::new(env!("CARGO_BIN_EXE_bake")).current_dir(dir.path()).args(["check", "out/report.json"]).output();
+    let checked = checked.unwrap();
+    assert!(checked.status.success(), "{}", String::from_utf8_lossy(&checked.stdout));
+
+    // Left out, the lamp no longer lights the scene.
+    let small = ["--max-atlas-size", "64", "--lights", "64", "--max-shots", "200"];
+    let output = bake(dir.path(), &[&["lamp.glb", "-o", "out2", "--no-punctual-lights", "-q"], &small[..]].concat());
+    assert_one_line_error(&output, "nothing lights the scene");
+    // Under an environment it is kept, and said so.
+    let env = fixture("sky_constant.hdr");
+    let args = ["lamp.glb", "--env", env.to_str().unwrap(), "-o", "out3", "--no-punctual-lights"];
+    let output = bake(dir.path(), &[&args[..], &small[..]].concat());
+    assert!(output.status.success(), "bake failed: {}", stderr(&output));
+    assert!(stderr(&output).contains("kept in the output but not baked (--no-punctual-lights)"), "{}", stderr(&output));
+    let report: Report = serde_json::from_slice(&std::fs::read(dir.path().join("out3/report.json")).unwrap()).unwrap();
+    assert!(report.scenes[0].punctual.is_none());
+}

@@ -5,7 +5,6 @@
 
 mod common;
 
-use bake::Baked;
 use bake::environment::{EnvironmentMap, LightMode};
 use bake::fixtures::{MeshData, Placement, SceneBuilder};
 use glam::{Quat, Vec3};
@@ -44,17 +43,6 @@ fn boxes_on_ground(instanced: bool) -> SceneBuilder {
     scene
 }
 
-/// Area-weighted mean lightmap (red) of each primitive's texels.
-fn means(baked: &Baked) -> Vec<f64> {
-    let mut sums = vec![(0.0f64, 0.0f64); baked.scene.primitives.len()];
-    for (texel, value) in baked.texels.texels.iter().zip(&baked.solution.lightmap) {
-        let sum = &mut sums[texel.primitive as usize];
-        sum.0 += value[0] as f64 * texel.area as f64;
-        sum.1 += texel.area as f64;
-    }
-    sums.iter().map(|(v, a)| v / a).collect()
-}
-
 #[test]
 fn gpu_instances_bake_like_the_same_boxes_drawn_by_plain_nodes() {
     let gpu = common::gpu();
@@ -68,7 +56,7 @@ fn gpu_instances_bake_like_the_same_boxes_drawn_by_plain_nodes() {
     assert_eq!(keys, [(0, None), (1, Some(0)), (1, Some(1)), (1, Some(2))], "one primitive per instance");
     let notices = &instanced.scene.notices;
     assert!(notices.iter().any(|n| n.contains("3 GPU instances") && n.contains("'boxes'")), "{notices:?}");
-    let (a, b) = (means(&instanced), means(&plain));
+    let (a, b) = (common::primitive_means(&instanced), common::primitive_means(&plain));
     eprintln!("instanced {a:.4?}\nplain     {b:.4?}");
     for (k, (a, b)) in a.iter().zip(&b).enumerate() {
         assert!((a / b - 1.0).abs() < 0.02, "primitive {k}: {a:.4} as instances, {b:.4} as plain nodes");

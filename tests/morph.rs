@@ -6,7 +6,6 @@
 
 mod common;
 
-use bake::Baked;
 use bake::environment::{EnvironmentMap, LightMode};
 use bake::fixtures::{MeshData, Placement, SceneBuilder};
 use glam::Vec3;
@@ -55,17 +54,6 @@ fn bounds(scene: &bake::scene::Scene, p: usize) -> (Vec3, Vec3) {
     let origin = Vec3::from(scene.origin.map(|c| c as f32));
     let points = scene.primitives[p].positions.iter().map(|&q| Vec3::from(q) + origin);
     points.fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), q| (lo.min(q), hi.max(q)))
-}
-
-/// Area-weighted mean lightmap (red) of each primitive's texels.
-fn means(baked: &Baked) -> Vec<f64> {
-    let mut sums = vec![(0.0f64, 0.0f64); baked.scene.primitives.len()];
-    for (texel, value) in baked.texels.texels.iter().zip(&baked.solution.lightmap) {
-        let sum = &mut sums[texel.primitive as usize];
-        sum.0 += value[0] as f64 * texel.area as f64;
-        sum.1 += texel.area as f64;
-    }
-    sums.iter().map(|(v, a)| v / a).collect()
 }
 
 #[test]
@@ -137,7 +125,7 @@ fn a_morphed_box_bakes_like_the_same_box_drawn_plain() {
     let options = common::options(128);
     let morphed = common::bake(&gpu, &morphing_box(), &lights, &options);
     let plain = common::bake(&gpu, &plain_tall_box(), &lights, &options);
-    let (a, b) = (means(&morphed), means(&plain));
+    let (a, b) = (common::primitive_means(&morphed), common::primitive_means(&plain));
     eprintln!("morphed {a:.4?}\nplain   {b:.4?}");
     assert_eq!(a.len(), 2, "the morphing box is baked");
     for (k, (a, b)) in a.iter().zip(&b).enumerate() {

@@ -68,6 +68,12 @@
 //! closest-hit and shadow rays go on through holes without re-tracing; in
 //! scenes without MASK materials the traversal runs with no test at all.
 //!
+//! Punctual lights (`Scene::lights`, KHR_lights_punctual) are sampled at
+//! every vertex too, each with one shadow ray to its position (along its
+//! direction for a directional light): a delta light no other technique can
+//! find, so it takes no MIS weight. It brings (1/π)·E·cos θ, with E what
+//! `PunctualLight::towards` gives.
+//!
 //! Emissive surfaces are only found when a cosine-sampled ray happens to hit
 //! them (there is no list of emissive triangles to sample). This is unbiased
 //! but the variance grows as emitters get smaller and brighter: an emitter of
@@ -101,7 +107,7 @@ use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
 use crate::environment::EnvironmentMap;
-use crate::scene::{AlphaMode, LinearImage, Scene, ScenePrimitive, TextureRef};
+use crate::scene::{AlphaMode, LinearImage, PunctualLight, Scene, ScenePrimitive, TextureRef};
 use bvh::{Bvh, NO_TEXCOORDS, Triangle};
 use sampling::EnvSampler;
 pub(crate) use sampling::{Rng, basis, cosine_hemisphere};
@@ -296,6 +302,8 @@ pub struct Reference {
     /// triangles' corners, same index.
     colors: Vec<[DVec3; 3]>,
     env: Option<EnvSampler>,
+    /// The scene's punctual lights, sampled at every vertex.
+    lights: Vec<PunctualLight>,
     /// Largest absolute vertex coordinate, metres (1 for an empty scene).
     scale: f64,
     /// Lift of secondary ray origins along the front normal, metres.
@@ -417,6 +425,7 @@ impl Reference {
             texcoords,
             colors,
             env,
+            lights: scene.lights.clone(),
             scale,
             surface_offset: 1e-9 * scale,
             samples: options.samples.max(1),

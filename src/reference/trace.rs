@@ -46,7 +46,43 @@ impl Reference {
 
     /// Whether a surface other than `skip` and its cut-outs blocks the ray.
     fn occluded(&self, origin: DVec3, direction: DVec3, skip: Option<u32>) -> bool {
-        self.bvh.occluded(origin, direction, f64::INFINITY, skip, &|tri, u, v| self.solid(tri, u, v))
+        self.occluded_within(origin, direction, f64::INFINITY, skip)
+    }
+
+    /// Whether a surface other than `skip` and its cut-outs blocks the ray
+    /// closer than `distance`.
+    fn occluded_within(&self, origin: DVec3, direction: DVec3, distance: f64, skip: Option<u32>) -> bool {
+        self.bvh.occluded(origin, direction, distance, skip, &|tri, u, v| self.solid(tri, u, v))
+    }
+
+    /// Whether a surface (not a cut-out) blocks the ray closer than
+    /// `distance`: the bake's punctual pass's shadow rays.
+    pub(crate) fn blocked(&self, origin: DVec3, direction: DVec3, distance: f64) -> bool {
+        self.occluded_within(origin, direction, distance, None)
+    }
+
+    /// The first surface (not a cut-out) along the ray closer than
+    /// `distance`: how far, and its triangle's front normal there.
+    pub(crate) fn first_surface(&self, origin: DVec3, direction: DVec3, distance: f64) -> Option<(f64, DVec3)> {
+        let hit = self.bvh.closest(origin, direction, distance, None, &|tri, u, v| self.solid(tri, u, v))?;
+        Some((hit.t, self.bvh.triangles[hit.triangle as usize].front_normal(hit.u, hit.v)))
+    }
+
+    /// The punctual lights' share of L_lm at a vertex: (1/π) Σ E cos θ over
+    /// the lights that reach it unblocked, from the front of its plane.
+    fn punctual_light(&self, origin: DVec3, normal: DVec3, face: Option<DVec3>, skip: Option<u32>) -> DVec3 {
+        let mut sum = DVec3::ZERO;
+        for light in &self.lights {
+            let Some(incident) = light.towards(origin) else { continue };
+            let cos = incident.direction.dot(normal);
+            if cos > 0.0
+                && !behind(face, incident.direction)
+                && !self.occluded_within(origin, incident.direction, incident.distance, skip)
+            {
+                sum += incident.irradiance * (cos * FRAC_1_PI);
+            }
+        }
+        sum
     }
 
     /// One path's estimate of L_lm at `position` (already offset off the
@@ -65,6 +101,7 @@ impl Reference {
         // later vertex uses its triangle's own normal.
         let mut face = face;
         for bounce in 0..=self.max_bounces {
+            result += beta * self.punctual_light(origin, normal, face, skip);
             // Next-event estimation towards the environment.
             if nee {
                 let env = env.unwrap();

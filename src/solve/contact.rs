@@ -32,7 +32,7 @@ use glam::{DVec3, IVec3, Vec3};
 use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
-use crate::environment::{Light, LightSet};
+use crate::environment::Light;
 use crate::reference::{Occluders, Rng, basis, cosine_hemisphere};
 use crate::scene::{AlphaMode, Scene};
 use crate::texelize::{Texel, TexelSet};
@@ -96,20 +96,31 @@ pub struct ContactStats {
     pub power_reflected_change: [f64; 3],
 }
 
+/// The direct light the passes gave each texel (L_lm), and what it came
+/// from.
+pub struct Direct<'a> {
+    /// The environment's lights, when there were any.
+    pub environment: Option<&'a [Light]>,
+    /// The punctual lights' share of `total`, when the scene has any: traced
+    /// already, it is kept where the environment's is traced again.
+    pub punctual: Option<&'a [[f32; 3]]>,
+    /// Both together.
+    pub total: &'a [[f32; 3]],
+}
+
 /// Replaces the light of texels in contact with another surface by light
 /// traced along rays (module docs). `hidden` marks texels under an opaque
-/// surface (no light; rays meeting their place take the surface's). `direct` is each texel's direct light
-/// (L_lm), `lightmap` the solution so far (direct and bounced), updated in
-/// place. `cell` is the world width of a shooter patch's cell, `texel_size`
-/// that of a lightmap texel.
+/// surface (no light; rays meeting their place take the surface's). `direct`
+/// is each texel's direct light, `lightmap` the solution so far (direct and
+/// bounced), updated in place. `cell` is the world width of a shooter
+/// patch's cell, `texel_size` that of a lightmap texel.
 #[allow(clippy::too_many_arguments)]
 pub fn fix(
     scene: &Scene,
     occluders: &Occluders,
     texels: &TexelSet,
     hidden: Option<&[bool]>,
-    lights: Option<&LightSet>,
-    direct: &[[f32; 3]],
+    direct: &Direct,
     lightmap: &mut [[f32; 3]],
     cell: f64,
     texel_size: f64,
@@ -133,10 +144,14 @@ pub fn fix(
         .par_iter()
         .filter_map(|&(i, probe)| {
             let t = &texels.texels[i];
-            let traced = lights.filter(|_| probe.nearest < direct_reach);
+            let traced = direct.environment.filter(|_| probe.nearest < direct_reach);
             let own_direct = match traced {
-                Some(lights) => tracer.direct(t, i, probe.origin, &lights.lights)?,
-                None => direct[i],
+                Some(lights) => {
+                    let environment = tracer.direct(t, i, probe.origin, lights)?;
+                    let punctual = direct.punctual.map_or([0.0; 3], |p| p[i]);
+                    [0, 1, 2].map(|c| environment[c] + punctual[c])
+                }
+                None => direct.total[i],
             };
             Some(Contact {
                 texel: i,
@@ -363,7 +378,7 @@ impl<'a> Tracer<'a> {
 }
 
 /// `d`, turned up to skim the face of normal `f` where it goes below it.
-fn skim_above(d: DVec3, f: DVec3) -> DVec3 {
+pub(super) fn skim_above(d: DVec3, f: DVec3) -> DVec3 {
     let height = d.dot(f);
     if height >= SKIM {
         return d;

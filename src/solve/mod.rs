@@ -3,8 +3,9 @@
 //! radiosity in radiance units L_i = Le_i + ρ_i Σ_j F_ij L_j.
 //!
 //! Passes, each left out when the scene does not need it:
-//! `direct` (environment light through per-light depth maps), then `bounce`
-//! (progressive refinement of reflected and emitted light between
+//! `direct` (environment light through per-light depth maps) and
+//! `punctual` (the scene's own lights, along exact shadow rays), then
+//! `bounce` (progressive refinement of reflected and emitted light between
 //! `patches`).
 
 pub mod bounce;
@@ -14,6 +15,7 @@ pub mod direct;
 mod hemicube_cull;
 mod overlaps;
 pub mod patches;
+pub mod punctual;
 pub mod supersample;
 mod surfaces;
 
@@ -30,6 +32,7 @@ use crate::texelize::{Texel, TexelSet};
 pub use bounce::{BounceOptions, BounceStats, TracePoint};
 pub use contact::ContactStats;
 use overlaps::Overlaps;
+use punctual::{Punctual, PunctualStats};
 
 /// Options of the solve, with their defaults.
 #[derive(Clone, Debug)]
@@ -45,6 +48,9 @@ pub struct SolveOptions {
     /// Trace the light of texels close to another surface on the CPU
     /// (`contact`).
     pub contact: bool,
+    /// Bake the scene's punctual lights (`punctual`); without, they are
+    /// left out of the scene before the solve.
+    pub punctual: bool,
     pub bounce: BounceOptions,
 }
 
@@ -55,6 +61,7 @@ impl Default for SolveOptions {
             batch_size: 64,
             supersample: true,
             contact: true,
+            punctual: true,
             bounce: BounceOptions::default(),
         }
     }
@@ -66,6 +73,8 @@ pub struct Solution {
     /// L_lm = E/π per texel, linear RGB.
     pub lightmap: Vec<[f32; 3]>,
     pub direct: Option<direct::DirectStats>,
+    /// The punctual lights' pass (`punctual`), when the scene has lights.
+    pub punctual: Option<PunctualStats>,
     pub bounce: Option<BounceStats>,
     /// The contact fix-up (`contact`), when it ran.
     pub contact: Option<ContactStats>,
@@ -118,11 +127,30 @@ pub fn run(
     let mut sees_itself = true;
     let mut coverage = None;
     let mut supersampled = 0;
+    let environment = lights.filter(|l| !l.lights.is_empty());
     match lights {
-        Some(lights) if !lights.lights.is_empty() => {
-            let (direct, texels_supersampled) =
-                direct_light_with(gpu, scene, &occluders, texels, lights, texels_per_unit, options, progress)?;
-            supersampled = texels_supersampled;
+        Some(lights) if lights.lights.is_empty() => skip(&mut skipped, "direct", "the environment has no energy"),
+        None => skip(&mut skipped, "direct", "no environment was given"),
+        Some(_) => {}
+    }
+    let punctual = Punctual::new(scene);
+    let mut punctual_stats = None;
+    // The punctual lights' L_lm, for the contact fix-up.
+    let mut punctual_light = None;
+    if environment.is_some() || punctual.is_some() {
+        let light = direct_light_with(
+            gpu,
+            scene,
+            &occluders,
+            texels,
+            environment,
+            punctual.as_ref(),
+            texels_per_unit,
+            options,
+            progress,
+        )?;
+        supersampled = light.supersampled;
+        if let Some(direct) = light.environment {
             for (value, e) in lightmap.iter_mut().zip(&direct.irradiance) {
                 *value = e.map(|c| c / std::f32::consts::PI);
             }
@@ -130,8 +158,16 @@ pub fn run(
             direct_stats = Some(direct.stats);
             coverage = Some(direct.coverage);
         }
-        Some(_) => skip(&mut skipped, "direct", "the environment has no energy"),
-        None => skip(&mut skipped, "direct", "no environment was given"),
+        if let (Some(irradiance), Some(punctual)) = (light.punctual, &punctual) {
+            punctual_stats = Some(punctual.stats(&texels.texels, &irradiance));
+            let own: Vec<[f32; 3]> = irradiance.iter().map(|e| e.map(|c| c / std::f32::consts::PI)).collect();
+            for (value, l) in lightmap.iter_mut().zip(&own) {
+                (0..3).for_each(|c| value[c] += l[c]);
+            }
+            // A point light's light may bounce anywhere.
+            sees_itself = true;
+            punctual_light = Some(own);
+        }
     }
 
     let emitters = texels.texels.iter().any(|t| t.area > 0.0 && t.emission.iter().any(|&e| e > 0.0));
@@ -189,8 +225,12 @@ pub fn run(
         // The reach is in shooter patches' cells (`patches::build`'s), with
         // or without a bounce pass.
         let cell = patches::cell_size(texels, options.bounce.patches) as f64 * texel_size as f64;
-        let stats =
-            contact::fix(scene, &occluders, texels, hidden, lights, direct, &mut lightmap, cell, texel_size as f64);
+        let direct = contact::Direct {
+            environment: environment.map(|l| l.lights.as_slice()),
+            punctual: punctual_light.as_deref(),
+            total: direct,
+        };
+        let stats = contact::fix(scene, &occluders, texels, hidden, &direct, &mut lightmap, cell, texel_size as f64);
         if stats.gathered > 0
             && let Some(bounce) = bounce_stats.as_mut()
         {
@@ -202,6 +242,7 @@ pub fn run(
     Ok(Solution {
         lightmap,
         direct: direct_stats,
+        punctual: punctual_stats,
         bounce: bounce_stats,
         contact: contact_stats,
         supersampled,
@@ -240,56 +281,90 @@ pub fn direct_light(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<(direct::Direct, usize)> {
     let occluders = LazyCell::new(|| Occluders::new(scene));
-    direct_light_with(gpu, scene, &occluders, texels, lights, texels_per_unit, options, progress)
+    let light =
+        direct_light_with(gpu, scene, &occluders, texels, Some(lights), None, texels_per_unit, options, progress)?;
+    Ok((light.environment.expect("the environment's light was gathered"), light.supersampled))
 }
 
-/// `direct_light` with the scene's triangles on the CPU built once for the
-/// whole solve (here, when the supersample fix-up plans its sub-samples).
+/// Direct light from the environment and from punctual lights, with the
+/// supersample fix-up where it is asked for.
+struct DirectLight {
+    /// The environment's, when there is one.
+    environment: Option<direct::Direct>,
+    /// The punctual lights' irradiance E per texel, when the scene has any.
+    punctual: Option<Vec<[f32; 3]>>,
+    /// Texels gathered at sub-samples of their footprint.
+    supersampled: usize,
+}
+
+/// Gathers the environment's light (`environment`, on the GPU) and the
+/// punctual lights' (`punctual`, on the CPU) at every texel. Texels where
+/// the two together change sharply are gathered again at sub-samples of
+/// their footprint (`supersample`), both kinds of light alike. The scene's
+/// triangles on the CPU are built once for the whole solve (here, when the
+/// supersample fix-up plans its sub-samples).
 #[allow(clippy::too_many_arguments)]
 fn direct_light_with(
     gpu: &Gpu,
     scene: &Scene,
     occluders: &LazyCell<Occluders, impl FnOnce() -> Occluders>,
     texels: &TexelSet,
-    lights: &LightSet,
+    environment: Option<&LightSet>,
+    punctual: Option<&Punctual>,
     texels_per_unit: f32,
     options: &SolveOptions,
     progress: &mut dyn FnMut(u64, u64),
-) -> Result<(direct::Direct, usize)> {
+) -> Result<DirectLight> {
     let mut gather = |points: &TexelSet, samples: &[Texel], lights: &LightSet| {
         direct::run(gpu, scene, points, samples, lights, texels_per_unit, options, progress)
     };
+    let punctual_at_texels = punctual.map(|p| p.irradiance(&texels.texels));
     if !options.supersample {
-        return Ok((gather(texels, &[], lights)?, 0));
+        let environment = environment.map(|lights| gather(texels, &[], lights)).transpose()?;
+        return Ok(DirectLight { environment, punctual: punctual_at_texels, supersampled: 0 });
     }
     let start = std::time::Instant::now();
     // Under many lights, a preview under merged ones flags the texels and
     // one full pass gathers them with their sub-samples. Under few, the full
     // pass flags them and a second one gathers the sub-samples.
-    let preview = supersample::preview_lights(lights);
-    let first = gather(texels, &[], preview.as_ref().unwrap_or(lights))?;
-    let plan = supersample::plan(occluders, texels, &first.irradiance);
-    let (mut direct, at_samples) = match (&preview, &plan) {
-        (None, None) => return Ok((first, 0)),
-        (None, Some(plan)) => {
+    let preview = environment.and_then(supersample::preview_lights);
+    let first = environment.map(|lights| gather(texels, &[], preview.as_ref().unwrap_or(lights))).transpose()?;
+    let mut flagging = first.as_ref().map_or_else(|| vec![[0.0; 3]; texels.texels.len()], |d| d.irradiance.clone());
+    for (sum, e) in flagging.iter_mut().zip(punctual_at_texels.iter().flatten()) {
+        (0..3).for_each(|c| sum[c] += e[c]);
+    }
+    let plan = supersample::plan(occluders, texels, &flagging);
+    let (mut direct, at_samples) = match (environment, first, &preview, &plan) {
+        (None, _, _, _) | (_, None, _, _) => (None, Vec::new()),
+        (Some(_), Some(first), None, None) => (Some(first), Vec::new()),
+        (Some(lights), Some(mut first), None, Some(plan)) => {
             let sub = gather(&plan.samples, &[], lights)?;
-            let mut direct = first;
-            direct.stats.evaluations += sub.stats.evaluations;
-            (direct, sub.irradiance)
+            first.stats.evaluations += sub.stats.evaluations;
+            (Some(first), sub.irradiance)
         }
-        (Some(_), _) => {
+        (Some(lights), Some(first), Some(_), _) => {
             let samples = plan.as_ref().map_or(&[][..], |p| &p.samples.texels);
             let mut direct = gather(texels, samples, lights)?;
             direct.stats.evaluations += first.stats.evaluations;
             let at_samples = std::mem::take(&mut direct.at_samples);
-            (direct, at_samples)
+            (Some(direct), at_samples)
         }
     };
-    direct.stats.seconds = start.elapsed().as_secs_f64();
+    if let Some(direct) = &mut direct {
+        direct.stats.seconds = start.elapsed().as_secs_f64();
+    }
     let Some(plan) = plan else {
-        return Ok((direct, 0));
+        return Ok(DirectLight { environment: direct, punctual: punctual_at_texels, supersampled: 0 });
     };
-    supersample::fold(&plan, &at_samples, &mut direct.irradiance);
-    direct.stats.power_received = direct::power_received(texels, &direct.irradiance);
-    Ok((direct, plan.texels))
+    if let Some(direct) = &mut direct {
+        supersample::fold(&plan, &at_samples, &mut direct.irradiance);
+        direct.stats.power_received = direct::power_received(texels, &direct.irradiance);
+    }
+    let punctual = punctual.zip(punctual_at_texels).map(|(punctual, mut irradiance)| {
+        let texel_size = 1.0 / texels_per_unit.max(1e-30) as f64;
+        let at_samples = punctual.irradiance_at_sub_samples(&plan.samples.texels, texel_size);
+        supersample::fold(&plan, &at_samples, &mut irradiance);
+        irradiance
+    });
+    Ok(DirectLight { environment: direct, punctual, supersampled: plan.texels })
 }

@@ -65,6 +65,17 @@ pub fn reference_points(baked: &Baked, indices: &[usize]) -> Vec<bake::reference
         .collect()
 }
 
+/// Area-weighted mean lightmap (red) of each primitive's texels.
+pub fn primitive_means(baked: &Baked) -> Vec<f64> {
+    let mut sums = vec![(0.0f64, 0.0f64); baked.scene.primitives.len()];
+    for (texel, value) in baked.texels.texels.iter().zip(&baked.solution.lightmap) {
+        let sum = &mut sums[texel.primitive as usize];
+        sum.0 += value[0] as f64 * texel.area as f64;
+        sum.1 += texel.area as f64;
+    }
+    sums.iter().map(|(v, a)| v / a).collect()
+}
+
 /// Lightmap values (red channel) of the texels of primitive `p`, with the texels.
 pub fn values_of(baked: &Baked, p: u32) -> Vec<(bake::texelize::Texel, f32)> {
     baked
