@@ -364,6 +364,12 @@ fn material_notices(source: &SourceAsset, materials: &[Material], used: &[usize]
     let mut notices = Vec::new();
     for &m in used {
         let name = materials[m].name.as_deref().unwrap_or("unnamed");
+        if source.json.pointer(&format!("/materials/{m}/extensions/KHR_materials_unlit")).is_some() {
+            notices.push(format!(
+                "material {m} '{name}' is unlit (KHR_materials_unlit): its primitives keep it and show its own \
+                 colour, as before; in the bake they cast shadows and reflect its base colour"
+            ));
+        }
         if materials[m].alpha == AlphaMode::Blend {
             notices.push(format!(
                 "material {m} '{name}' is alpha-blended: baked as opaque (only MASK cut-outs let light through)"

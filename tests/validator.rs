@@ -354,3 +354,49 @@ fn a_cut_out_keeps_its_alpha_texture_in_the_baked_material() {
     assert_eq!(fence.base_color, [0.8, 0.7, 0.5, 0.9]);
     assert!(fence.base_color_texture.is_some());
 }
+
+#[test]
+fn an_unlit_material_keeps_showing_its_own_colour() {
+    // A sign whose material is unlit (as a photogrammetry scan's, lighting
+    // in its texture) stands on a lit ground: after the bake it still shows
+    // its own colour, while the ground shows the baked atlas.
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene = SceneBuilder::new();
+    scene.object("ground", &MeshData::plane(4.0, 4.0, 1), [0.6, 0.6, 0.6, 1.0], [0.0; 3], Placement::default());
+    scene.object(
+        "sign",
+        &MeshData::cuboid([1.0, 0.6, 0.1]),
+        [0.9, 0.3, 0.1, 1.0],
+        [0.0; 3],
+        Placement::at(glam::Vec3::Y * 0.3),
+    );
+    let glb = scene.to_glb();
+    let parsed = gltf::binary::Glb::from_slice(&glb).unwrap();
+    let mut json: serde_json::Value = serde_json::from_slice(&parsed.json).unwrap();
+    json["materials"][1]["extensions"] = serde_json::json!({ "KHR_materials_unlit": {} });
+    json["extensionsUsed"] = serde_json::json!(["KHR_materials_unlit"]);
+    let input = dir.path().join("sign.glb");
+    let bin = parsed.bin.unwrap().into_owned();
+    std::fs::write(&input, bake::export::glb::encode(&serde_json::to_vec(&json).unwrap(), &bin)).unwrap();
+    let out = dir.path().join("out");
+    bake(&input, &out, &[]);
+    let baked = out.join("sign.glb");
+    assert_valid(&baked);
+    let asset = bake::asset::SourceAsset::load(&baked).unwrap();
+    let material_of = |mesh: usize| {
+        let index = asset.json["meshes"][mesh]["primitives"][0]["material"].as_u64().unwrap() as usize;
+        asset.json["materials"][index].clone()
+    };
+    let (ground, sign) = (material_of(0), material_of(1));
+    assert_eq!(ground["pbrMetallicRoughness"]["baseColorTexture"]["texCoord"], 1, "{ground}");
+    assert_eq!(sign["name"], "sign", "{sign}");
+    assert!(sign["extensions"].get("KHR_materials_unlit").is_some(), "{sign}");
+    assert_eq!(
+        sign["pbrMetallicRoughness"]["baseColorFactor"],
+        json["materials"][1]["pbrMetallicRoughness"]["baseColorFactor"]
+    );
+    assert!(sign["pbrMetallicRoughness"].get("baseColorTexture").is_none(), "no atlas on it: {sign}");
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let notices = report["scenes"][0]["notices"].to_string();
+    assert!(notices.contains("material 1 'sign' is unlit (KHR_materials_unlit): its primitives keep it"), "{notices}");
+}

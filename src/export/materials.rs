@@ -7,7 +7,7 @@
 //!   model-viewer and Blender show it exactly as baked, with no plugin.
 //!   A cut-out whose alpha comes from its base colour texture shows the
 //!   atlas as emission instead, keeping that texture for its alpha
-//!   (`push_baked`).
+//!   (`push_baked`). A primitive whose own material is unlit keeps it.
 //! - `pbr+lightmap`: the input's own material, intact, with the lightmap
 //!   referenced through `MOZ_lightmap` {index, texCoord: 1, intensity}, an
 //!   RGBM-encoded PNG of L_lm (decode range in the texture's extras).
@@ -59,11 +59,17 @@ pub fn assign(document: &mut Document, rewritten: &[Rewritten], textures: Textur
         // A material follows moved UVs only if it samples texCoord 1.
         let original = material.map(|m| document.json["materials"][m].clone());
         let remap = r.moved_uv1_to.filter(|_| original.as_ref().is_some_and(|m| uses_texcoord(m, 1)));
-        let baked =
-            *unlit.entry((material, remap)).or_insert_with(|| push_baked(document, material, remap, textures.baked));
         let pbr = *lightmapped
             .entry((material, remap))
             .or_insert_with(|| lightmapped_material(document, material, remap, &others, textures.lightmap));
+        // An unlit material shows its own colour whatever the light: it stays (a
+        // photogrammetry scan's texture holds its lighting already).
+        let baked = match original.as_ref().is_some_and(is_unlit) {
+            true => pbr,
+            false => {
+                *unlit.entry((material, remap)).or_insert_with(|| push_baked(document, material, remap, textures.baked))
+            }
+        };
         let primitive = &mut document.json["meshes"][r.mesh]["primitives"][r.primitive];
         primitive["material"] = json!(baked);
         let extension = &mut primitive["extensions"]["KHR_materials_variants"];
@@ -139,6 +145,11 @@ fn materials_of_other_primitives(document: &Document, rewritten: &[Rewritten]) -
         }
     }
     used
+}
+
+/// Whether `material` is unlit (KHR_materials_unlit).
+pub fn is_unlit(material: &Value) -> bool {
+    material.pointer("/extensions/KHR_materials_unlit").is_some()
 }
 
 /// Whether `material` takes its alpha from its base colour texture in a
