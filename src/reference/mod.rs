@@ -352,13 +352,19 @@ fn scene_triangles(scene: &Scene) -> Vec<(usize, usize, Triangle)> {
     out
 }
 
-/// The scene's decoded, well-formed images that some material samples,
+/// The scene's decoded, well-formed images that some material samples
+/// (with `cut_outs_only`, only those that cut out an alpha-MASK material),
 /// copied once, and for each scene image its index among them (`None`:
 /// sampled as white).
-fn usable_images(scene: &Scene) -> (Vec<LinearImage>, Vec<Option<usize>>) {
+fn usable_images(scene: &Scene, cut_outs_only: bool) -> (Vec<LinearImage>, Vec<Option<usize>>) {
     let mut sampled = vec![false; scene.images.len()];
     for m in &scene.materials {
-        for t in [&m.base_color_texture, &m.emissive_texture].into_iter().flatten() {
+        let textures = match (cut_outs_only, m.alpha) {
+            (false, _) => [&m.base_color_texture, &m.emissive_texture],
+            (true, AlphaMode::Mask(_)) => [&m.base_color_texture, &None],
+            (true, _) => [&None, &None],
+        };
+        for t in textures.into_iter().flatten() {
             if let Some(s) = sampled.get_mut(t.image) {
                 *s = true;
             }
@@ -387,7 +393,23 @@ impl Reference {
     /// # Panics
     /// If the environment's texel count is not width × height.
     pub fn new(scene: &Scene, environment: Option<&EnvironmentMap>, options: &ReferenceOptions) -> Reference {
-        let (images, image_slots) = usable_images(scene);
+        Reference::build(scene, environment, options, false)
+    }
+
+    /// The scene's surfaces for shadow rays alone (`blocked`,
+    /// `first_surface`): of its images only those that cut out are copied,
+    /// so its estimates are not the scene's (textures read as white).
+    pub(crate) fn for_shadow_rays(scene: &Scene) -> Reference {
+        Reference::build(scene, None, &ReferenceOptions::default(), true)
+    }
+
+    fn build(
+        scene: &Scene,
+        environment: Option<&EnvironmentMap>,
+        options: &ReferenceOptions,
+        cut_outs_only: bool,
+    ) -> Reference {
+        let (images, image_slots) = usable_images(scene, cut_outs_only);
         let default_material = crate::scene::Material::default();
         let materials: Vec<SurfaceMaterial> = scene
             .materials

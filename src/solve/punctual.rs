@@ -17,7 +17,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::contact::skim_above;
-use crate::reference::{Reference, ReferenceOptions};
+use crate::reference::Reference;
 use crate::scene::{PunctualLight, Scene};
 use crate::texelize::Texel;
 
@@ -66,7 +66,7 @@ impl<'a> Punctual<'a> {
             return None;
         }
         let start = std::time::Instant::now();
-        let surfaces = Reference::new(scene, None, &ReferenceOptions::default());
+        let surfaces = Reference::for_shadow_rays(scene);
         let stats =
             PunctualStats { lights: scene.lights.len(), seconds: start.elapsed().as_secs_f64(), ..Default::default() };
         Some(Punctual { lights: &scene.lights, surfaces, stats: std::sync::Mutex::new(stats) })
