@@ -7,8 +7,9 @@
 //! ```
 //!
 //! It reads the file through bake's own importer, so it sees what a viewer
-//! sees: the baked texture on TEXCOORD_1, sampled bilinearly with the
-//! glTF sampler's clamp, into an sRGB target.
+//! sees: the baked texture on TEXCOORD_1 (the emissive texture of a
+//! cut-out's baked form, whose holes it does not cut), sampled bilinearly
+//! with the glTF sampler's clamp, into an sRGB target.
 
 use std::path::Path;
 
@@ -191,7 +192,12 @@ fn render(gpu: &Gpu, scene: &Scene, azimuth: f32, elevation: f32) -> Result<Vec<
     // colour texture reads, its factor, its texture.
     let mut draws = Vec::new();
     for primitive in &scene.primitives {
-        let material = primitive.material.map(|m| scene.materials[m].clone()).unwrap_or_default();
+        let mut material = primitive.drawn_material.map(|m| scene.materials[m].clone()).unwrap_or_default();
+        // A cut-out's baked form shows the atlas as emission over a black base colour.
+        if material.base_color[..3] == [0.0; 3] && material.emissive_texture.is_some() {
+            material.base_color = [material.emission[0], material.emission[1], material.emission[2], 1.0];
+            material.base_color_texture = material.emissive_texture.take();
+        }
         let texture_ref = material.base_color_texture.as_ref();
         let image = texture_ref.and_then(|t| scene.images[t.image].as_ref());
         let uvs = match texture_ref.map(|t| t.tex_coord) {

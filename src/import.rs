@@ -108,7 +108,12 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
     used.sort();
     used.dedup();
     notices.extend(material_notices(&source, &materials, &used));
-    let (images, image_notices) = decode_images(&source, &materials, &used);
+    // The images of the materials a baked file draws with too, for what shows it.
+    let mut shown: Vec<usize> =
+        used.iter().copied().chain(primitives.iter().filter_map(|p| p.drawn_material)).collect();
+    shown.sort();
+    shown.dedup();
+    let (images, image_notices) = decode_images(&source, &materials, &shown);
     notices.extend(image_notices);
     let name = source.path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "scene".into());
     Ok(Scene { name, source, origin, primitives, materials, images, lights, notices })
@@ -315,6 +320,7 @@ fn collect_mesh(
                 mirrored,
                 material: material_before_a_bake(&source.json, mesh.index(), primitive.index())
                     .or(primitive.material().index()),
+                drawn_material: primitive.material().index(),
             };
             Ok(Gathered { primitive: baked, world, what: what.clone() })
         };

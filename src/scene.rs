@@ -47,7 +47,12 @@ pub struct ScenePrimitive {
     /// faces front is reversed in world space.
     pub mirrored: bool,
     /// Index into `Scene::materials`; `None` means glTF's default material.
+    /// In a file bake wrote, the primitive's own material (its `pbr+lightmap`
+    /// variant's), not the baked one it is drawn with.
     pub material: Option<usize>,
+    /// The material the file draws it with by default (`material` but in a
+    /// file bake wrote): what a viewer shows.
+    pub drawn_material: Option<usize>,
 }
 
 /// What names a baked primitive in the input: its node, the node's GPU

@@ -353,6 +353,11 @@ fn a_cut_out_keeps_its_alpha_texture_in_the_baked_material() {
     let fence = &again.materials[again.primitives[1].material.unwrap()];
     assert_eq!(fence.base_color, [0.8, 0.7, 0.5, 0.9]);
     assert!(fence.base_color_texture.is_some());
+    // What it is drawn with stays known, with its images decoded, for what shows the file.
+    let drawn = &again.materials[again.primitives[1].drawn_material.unwrap()];
+    assert_eq!(drawn.name.as_deref(), Some("fence (baked)"));
+    let atlas = drawn.emissive_texture.as_ref().expect("the atlas as emission");
+    assert!(again.images[atlas.image].is_some(), "the atlas is decoded");
 }
 
 #[test]

@@ -712,6 +712,7 @@ mod tests {
             repeats: Vec::new(),
             mirrored: false,
             material: None,
+            drawn_material: None,
         }
     }
 
