@@ -62,7 +62,7 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
             moved.insert(animated);
         }
         if let Some(light) = node.light() {
-            lights.extend(punctual_light(&node, &light, world)?);
+            lights.extend(punctual_light(&node, &light, world, &mut notices)?);
         }
         if let Some(mesh) = node.mesh() {
             match instancing::read(&source, node.index())? {
@@ -121,11 +121,13 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
 
 /// The KHR_lights_punctual light `light` where `node` (of world transform
 /// `world`) places it, in world coordinates; `None` for one that gives no
-/// light. Errors name the light and the node.
+/// light, or none anywhere (a node scaled to nothing, as animators hide
+/// things: with a notice). Errors name the light and the node.
 fn punctual_light(
     node: &gltf::Node,
     light: &gltf::khr_lights_punctual::Light,
     world: DMat4,
+    notices: &mut Vec<String>,
 ) -> Result<Option<PunctualLight>> {
     use gltf::khr_lights_punctual::Kind;
     let name = light.name().map(|n| format!(" '{n}'")).unwrap_or_default();
@@ -154,7 +156,11 @@ fn punctual_light(
     let position = world.transform_point3(DVec3::ZERO);
     let direction = world.transform_vector3(DVec3::NEG_Z).try_normalize();
     let (Some(direction), true) = (direction, position.is_finite()) else {
-        bail!("{what}: the node's transform gives no position or direction (it scales to zero or overflows)");
+        notices.push(format!(
+            "{what}: the node's transform gives it no position or direction (it scales it to nothing or overflows): \
+             left out of the bake"
+        ));
+        return Ok(None);
     };
     if intensity == DVec3::ZERO {
         return Ok(None);

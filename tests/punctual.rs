@@ -310,3 +310,32 @@ fn a_curved_surface_s_sub_samples_do_not_shadow_themselves() {
     );
     assert!(worst > 0.8, "a texel's sub-samples gave {worst:.3} of its centre's light");
 }
+
+#[test]
+fn lights_are_placed_by_their_nodes_and_one_scaled_to_nothing_is_left_out() {
+    let mut scene = SceneBuilder::new();
+    scene.object("ground", &MeshData::plane(2.0, 2.0, 1), [0.5, 0.5, 0.5, 1.0], [0.0; 3], Placement::default());
+    let spot = json!({ "type": "spot", "intensity": 2.0, "color": [1.0, 0.5, 0.0], "range": 9.0, "spot": {} });
+    let aim = Quat::from_rotation_x(-0.5);
+    scene.light("spot", spot, Placement::at(Vec3::new(1.0, 2.0, 3.0)).rotated(aim));
+    let hidden = Placement::at(Vec3::Y).scaled(Vec3::ZERO);
+    scene.light("hidden", json!({ "type": "point", "name": "bulb" }), hidden);
+    scene.light("dark", json!({ "type": "point", "intensity": 0.0 }), Placement::at(Vec3::Y));
+    let imported = common::scene(&scene, "lights");
+    assert_eq!(imported.lights.len(), 1, "{:?}", imported.lights);
+    let light = &imported.lights[0];
+    assert_eq!(light.node, 1);
+    assert!(light.position.abs_diff_eq(DVec3::new(1.0, 2.0, 3.0), 1e-6), "{}", light.position);
+    // Its node's −Z, turned 0.5 rad down about +X.
+    let expected = DVec3::new(0.0, -(0.5f64).sin(), -(0.5f64).cos());
+    assert!(light.direction.abs_diff_eq(expected, 1e-6), "{}", light.direction);
+    assert_eq!(light.intensity, DVec3::new(2.0, 1.0, 0.0));
+    assert_eq!(light.range, Some(9.0));
+    assert!(matches!(light.kind, bake::scene::LightKind::Spot { inner_cone, outer_cone }
+        if inner_cone == 0.0 && (outer_cone - std::f64::consts::FRAC_PI_4).abs() < 1e-6));
+    let notices = &imported.notices;
+    assert!(
+        notices.iter().any(|n| n.starts_with("light 1 'bulb' on node 2 'hidden'") && n.contains("left out")),
+        "{notices:?}"
+    );
+}
