@@ -423,7 +423,9 @@ impl Reference {
             .into_iter()
             .map(|(pi, t, mut tri)| {
                 let primitive = &scene.primitives[pi];
-                if materials[tri.material as usize].is_textured() || primitive.colors.is_some() {
+                // Shadow rays read only the cut-outs' textures, never the colours.
+                let coloured = primitive.colors.is_some() && !cut_outs_only;
+                if materials[tri.material as usize].is_textured() || coloured {
                     tri.texcoords = texcoords.len() as u32;
                     texcoords.push(triangle_texcoords(primitive, t));
                     colors.push(triangle_colors(primitive, t));
@@ -611,42 +613,50 @@ impl Stats {
 /// solve's supersample fix-up asks whether a segment along a surface
 /// crosses other geometry, the shooter patches what their origin sees, the
 /// contact fix-up what a ray meets. Built once per bake and shared by the
-/// three. Geometry only: alpha-MASK cut-outs block like solid surface
-/// (unlike in [`Reference`]), so the fix-up drops a sub-sample behind a hole
-/// as it does behind a wall, which costs only some smoothing.
-pub struct Occluders(Bvh);
+/// three, and by the punctual lights' shadow rays. Geometry only for the
+/// three: alpha-MASK cut-outs block like solid surface (unlike in
+/// [`Reference`]), so the fix-up drops a sub-sample behind a hole as it does
+/// behind a wall, which costs only some smoothing. The shadow rays pass the
+/// cut-outs (`with_cut_outs`).
+pub struct Occluders(Reference);
 
 impl Occluders {
-    /// A BVH over every triangle of `scene`.
+    /// A BVH over every triangle of `scene`, with what its cut-outs need.
     pub fn new(scene: &Scene) -> Occluders {
-        Occluders(Bvh::new(scene_triangles(scene).into_iter().map(|(_, _, t)| t).collect()))
+        Occluders(Reference::for_shadow_rays(scene))
+    }
+
+    /// The same surfaces with their cut-outs open, for shadow rays
+    /// (`Reference::blocked`, `Reference::first_surface`).
+    pub(crate) fn with_cut_outs(&self) -> &Reference {
+        &self.0
     }
 
     /// Whether any triangle crosses the segment from `a` to `b` (ends excluded).
     pub(crate) fn blocks(&self, a: DVec3, b: DVec3) -> bool {
-        self.0.occluded(a, b - a, 1.0, None, &bvh::every_hit)
+        self.0.bvh.occluded(a, b - a, 1.0, None, &bvh::every_hit)
     }
 
     /// The first triangle the ray `origin + t·direction` (0 < t < `t_max`)
     /// meets: its distance t, its primitive's index and its face normal.
     pub(crate) fn first_hit(&self, origin: DVec3, direction: DVec3, t_max: f64) -> Option<(f64, u32, DVec3)> {
-        let hit = self.0.closest(origin, direction, t_max, None, &bvh::every_hit)?;
-        let triangle = &self.0.triangles[hit.triangle as usize];
+        let hit = self.0.bvh.closest(origin, direction, t_max, None, &bvh::every_hit)?;
+        let triangle = &self.0.bvh.triangles[hit.triangle as usize];
         Some((hit.t, triangle.primitive, triangle.face))
     }
 
     /// The primitive of some triangle on the ray from `origin` towards
     /// `direction` (any that blocks it, not always the first).
     pub(crate) fn any_blocker(&self, origin: DVec3, direction: DVec3) -> Option<u32> {
-        let hit = self.0.any_hit(origin, direction, f64::INFINITY, None, &bvh::every_hit)?;
-        Some(self.0.triangles[hit.triangle as usize].primitive)
+        let hit = self.0.bvh.any_hit(origin, direction, f64::INFINITY, None, &bvh::every_hit)?;
+        Some(self.0.bvh.triangles[hit.triangle as usize].primitive)
     }
 
     /// Whether a triangle that `counts` accepts (given its primitive's index
     /// and its front normal) crosses the segment from `a` to `b` (ends
     /// excluded).
     pub(crate) fn blocks_where(&self, a: DVec3, b: DVec3, counts: impl Fn(u32, DVec3) -> bool) -> bool {
-        self.0.occluded(a, b - a, 1.0, None, &|t: &Triangle, _, _| counts(t.primitive, t.face))
+        self.0.bvh.occluded(a, b - a, 1.0, None, &|t: &Triangle, _, _| counts(t.primitive, t.face))
     }
 }
 

@@ -133,7 +133,7 @@ pub fn run(
         None => skip(&mut skipped, "direct", "no environment was given"),
         Some(_) => {}
     }
-    let punctual = Punctual::new(scene);
+    let punctual = (!scene.lights.is_empty()).then(|| Punctual::new(scene, &occluders));
     let mut punctual_stats = None;
     // The punctual lights' L_lm, for the contact fix-up.
     let mut punctual_light = None;

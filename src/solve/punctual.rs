@@ -17,7 +17,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::contact::skim_above;
-use crate::reference::Reference;
+use crate::reference::{Occluders, Reference};
 use crate::scene::{PunctualLight, Scene};
 use crate::texelize::Texel;
 
@@ -55,21 +55,15 @@ pub struct PunctualStats {
 pub struct Punctual<'a> {
     lights: &'a [PunctualLight],
     /// Only its shadow rays are used: exact, through cut-outs.
-    surfaces: Reference,
+    surfaces: &'a Reference,
     stats: std::sync::Mutex<PunctualStats>,
 }
 
 impl<'a> Punctual<'a> {
-    /// `None` for a scene without punctual lights.
-    pub fn new(scene: &'a Scene) -> Option<Punctual<'a>> {
-        if scene.lights.is_empty() {
-            return None;
-        }
-        let start = std::time::Instant::now();
-        let surfaces = Reference::for_shadow_rays(scene);
-        let stats =
-            PunctualStats { lights: scene.lights.len(), seconds: start.elapsed().as_secs_f64(), ..Default::default() };
-        Some(Punctual { lights: &scene.lights, surfaces, stats: std::sync::Mutex::new(stats) })
+    /// The pass for `scene`'s lights, its shadow rays through `occluders`.
+    pub fn new(scene: &'a Scene, occluders: &'a Occluders) -> Punctual<'a> {
+        let stats = PunctualStats { lights: scene.lights.len(), ..Default::default() };
+        Punctual { lights: &scene.lights, surfaces: occluders.with_cut_outs(), stats: std::sync::Mutex::new(stats) }
     }
 
     /// Irradiance E (RGB) at each texel, in order: points on the surface.
