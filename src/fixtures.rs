@@ -573,9 +573,30 @@ impl SceneBuilder {
         self.materials[material]["alphaCutoff"] = json!(cutoff);
     }
 
+    /// Makes `material` transmit `factor` of the light through it, as
+    /// clear glass does (KHR_materials_transmission).
+    pub fn transmission(&mut self, material: usize, factor: f32) {
+        let material = &mut self.materials[material];
+        let extensions = material.as_object_mut().unwrap().entry("extensions").or_insert_with(|| json!({}));
+        extensions["KHR_materials_transmission"] = json!({ "transmissionFactor": factor });
+    }
+
+    /// Makes `material` alpha-blended (alphaMode BLEND), at the alpha of
+    /// its base colour.
+    pub fn alpha_blend(&mut self, material: usize) {
+        self.materials[material]["alphaMode"] = json!("BLEND");
+    }
+
+    /// Sets the alpha of `material`'s base colour factor.
+    pub fn set_base_color_alpha(&mut self, material: usize, alpha: f32) {
+        self.materials[material]["pbrMetallicRoughness"]["baseColorFactor"][3] = json!(alpha);
+    }
+
     fn document(&self) -> Value {
         let mut extensions_used = Vec::new();
-        for extension in ["KHR_materials_emissive_strength", "KHR_materials_pbrSpecularGlossiness"] {
+        for extension in
+            ["KHR_materials_emissive_strength", "KHR_materials_pbrSpecularGlossiness", "KHR_materials_transmission"]
+        {
             if self.materials.iter().any(|m| m.pointer(&format!("/extensions/{extension}")).is_some()) {
                 extensions_used.push(extension);
             }

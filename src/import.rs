@@ -5,7 +5,8 @@
 //! static weights and an animated node in its rest pose, each with a
 //! notice. The KHR_lights_punctual lights the nodes place are collected
 //! too (`Scene::lights`). What cannot be baked (points, lines, skinned meshes) is left out
-//! with a notice, never silently.
+//! with a notice, never silently, and so is what lets most light through
+//! (clear glass, see `see_through`).
 //!
 //! Transforms are composed and applied in f64 and positions stored in f32
 //! relative to `Scene::origin` (see `scene::choose_origin`): f32 world
@@ -255,6 +256,15 @@ fn collect_mesh(
             notices.push(format!("{what} has no POSITION attribute: left out of the bake"));
             continue;
         };
+        let material =
+            material_before_a_bake(&source.json, mesh.index(), primitive.index()).or(primitive.material().index());
+        if let Some(notice) = material.and_then(|m| see_through(&source.json, m)) {
+            // One notice per material, however many panes use it.
+            if !notices.contains(&notice) {
+                notices.push(notice);
+            }
+            continue;
+        }
         let read = || -> Result<Gathered> {
             let morph = |attribute: &str, accessor: &gltf::Accessor, width: usize| -> Result<Vec<f32>> {
                 let found = accessor.dimensions().multiplicity();
@@ -324,8 +334,7 @@ fn collect_mesh(
                 colors,
                 indices,
                 mirrored,
-                material: material_before_a_bake(&source.json, mesh.index(), primitive.index())
-                    .or(primitive.material().index()),
+                material,
                 drawn_material: primitive.material().index(),
             };
             Ok(Gathered { primitive: baked, world, what: what.clone() })
@@ -338,6 +347,42 @@ fn collect_mesh(
         gathered.push(read);
     }
     Ok(())
+}
+
+/// Below this fraction of light passing, a surface is baked as opaque; at
+/// or above it, as absent. Shadows are all or nothing, so this is the choice
+/// nearer the truth either way.
+const SEE_THROUGH: f64 = 0.5;
+
+/// The notice for a material that lets most light through, whose
+/// primitives are left out of the bake (`None` for any other): clear glass
+/// (KHR_materials_transmission), or a blend whose alpha, with no texture to
+/// vary it, is under [`SEE_THROUGH`]. Left out, a window lets the sun into
+/// the room, untinted and without the few percent its faces reflect, and
+/// keeps its own material, which viewers draw as glass; baked, it would
+/// shut the light out and show as an opaque pane.
+fn see_through(json: &serde_json::Value, m: usize) -> Option<String> {
+    let material = json.pointer(&format!("/materials/{m}"))?;
+    let name = material.get("name").and_then(serde_json::Value::as_str).unwrap_or("unnamed");
+    let what = format!("material {m} '{name}'");
+    let after = "its primitives are left out of the bake (light passes them, untinted) and keep their material";
+    let number = |pointer: &str| material.pointer(pointer).and_then(serde_json::Value::as_f64);
+    let transmission = number("/extensions/KHR_materials_transmission/transmissionFactor").unwrap_or(0.0);
+    if transmission >= SEE_THROUGH {
+        let texture = match material.pointer("/extensions/KHR_materials_transmission/transmissionTexture") {
+            Some(_) => ", its transmission texture not read",
+            None => "",
+        };
+        return Some(format!(
+            "{what} transmits light (KHR_materials_transmission, factor {transmission}{texture}): {after}"
+        ));
+    }
+    let blended = material.get("alphaMode").and_then(serde_json::Value::as_str) == Some("BLEND");
+    let alpha = number("/pbrMetallicRoughness/baseColorFactor/3").unwrap_or(1.0);
+    let textured = material.pointer("/pbrMetallicRoughness/baseColorTexture").is_some()
+        || material.pointer("/extensions/KHR_materials_pbrSpecularGlossiness").is_some();
+    (blended && !textured && alpha < SEE_THROUGH)
+        .then(|| format!("{what} is alpha-blended at alpha {alpha}, mostly see-through: {after}"))
 }
 
 /// In a file bake wrote, the material a primitive had before: the one its
@@ -370,8 +415,9 @@ fn triangle_list(mode: Mode, drawn: &[u32]) -> Vec<u32> {
 }
 
 /// What the bake does not follow in the used materials, one notice each:
-/// blending and transmission are baked as opaque, and a texture with only a
-/// KTX2 image as if it were absent.
+/// blending and transmission that let less than [`SEE_THROUGH`] of the
+/// light pass (or vary it by a texture) are baked as opaque, and a texture
+/// with only a KTX2 image as if it were absent.
 fn material_notices(source: &SourceAsset, materials: &[Material], used: &[usize]) -> Vec<String> {
     let mut notices = Vec::new();
     for &m in used {

@@ -285,7 +285,7 @@ fn vertex_coloured_closed_room_reaches_le_over_one_minus_rho_and_bakes_its_textu
 }
 
 #[test]
-fn transmissive_and_blended_materials_are_named_in_a_notice_as_baked_opaque() {
+fn transmissive_and_blended_materials_that_pass_little_light_are_named_in_a_notice_as_baked_opaque() {
     let mut builder = SceneBuilder::new();
     builder.object("glass", &MeshData::plane(1.0, 1.0, 1), [0.9, 0.9, 0.9, 1.0], [0.0; 3], Placement::default());
     builder.object("leaf", &MeshData::plane(1.0, 1.0, 1), [0.2, 0.6, 0.2, 0.5], [0.0; 3], Placement::default());
@@ -293,7 +293,7 @@ fn transmissive_and_blended_materials_are_named_in_a_notice_as_baked_opaque() {
     let glb = builder.to_glb();
     let parsed = gltf::binary::Glb::from_slice(&glb).unwrap();
     let mut document: serde_json::Value = serde_json::from_slice(&parsed.json).unwrap();
-    document["materials"][0]["extensions"] = json!({ "KHR_materials_transmission": { "transmissionFactor": 1.0 } });
+    document["materials"][0]["extensions"] = json!({ "KHR_materials_transmission": { "transmissionFactor": 0.3 } });
     document["materials"][1]["extensions"] =
         json!({ "KHR_materials_diffuse_transmission": { "diffuseTransmissionFactor": 0.4 } });
     document["materials"][2]["alphaMode"] = json!("BLEND");
@@ -309,4 +309,60 @@ fn transmissive_and_blended_materials_are_named_in_a_notice_as_baked_opaque() {
     ] {
         assert!(notices.iter().any(|n| n.contains(expected)), "no notice says '{expected}'");
     }
+}
+
+/// What makes a material what a test wants.
+type Dress<'a> = &'a dyn Fn(&mut SceneBuilder, usize);
+
+/// L_lm on a grey 4 m ground under the horizon sky (L = 2 above, 0 below)
+/// with a 1 m pane 0.3 m over its middle, the pane's material set by
+/// `dress`: the texels under the pane (within 0.3 m of its axis) and the
+/// number of primitives baked.
+fn ground_under_a_pane(dress: impl Fn(&mut SceneBuilder, usize)) -> (Vec<f32>, usize) {
+    let gpu = common::gpu();
+    let mut builder = SceneBuilder::new();
+    builder.object("ground", &MeshData::plane(4.0, 4.0, 8), [0.5, 0.5, 0.5, 1.0], [0.0; 3], Placement::default());
+    let pane = builder.material("pane", [0.9, 0.9, 0.9, 1.0], [0.0; 3]);
+    dress(&mut builder, pane);
+    let mesh = builder.mesh("pane", &MeshData::cuboid([1.0, 0.02, 1.0]), Some(pane));
+    builder.node("pane", mesh, Placement::at(Vec3::Y * 0.3));
+    let baked_primitives = common::scene(&builder, "pane").primitives.len();
+    let lights = common::lights(&EnvironmentMap::horizon([2.0; 3]), LightMode::Cube { face_size: 16 });
+    let baked = common::bake(&gpu, &builder, &lights, &common::options(64));
+    let under = common::values_of(&baked, 0)
+        .into_iter()
+        .filter(|(t, _)| t.area > 0.0 && t.position().x.abs() < 0.3 && t.position().z.abs() < 0.3)
+        .map(|(_, v)| v)
+        .collect();
+    (under, baked_primitives)
+}
+
+#[test]
+fn clear_glass_and_a_faint_blend_let_the_sky_through_while_frosted_glass_shades() {
+    // Left out of the bake, a see-through pane lets the ground see the whole
+    // sky: L_lm = L = 2, as with nothing over it (tests/horizon.rs).
+    let clear: [(&str, Dress); 2] = [
+        ("clear glass", &|b, m| b.transmission(m, 1.0)),
+        ("a blend at alpha 0.2", &|b, m| {
+            b.alpha_blend(m);
+            b.set_base_color_alpha(m, 0.2);
+        }),
+    ];
+    for (what, dress) in clear {
+        let (under, primitives) = ground_under_a_pane(dress);
+        assert_eq!(primitives, 1, "{what}: the pane is left out");
+        assert!(under.len() > 20);
+        let worst = under.iter().map(|v| (v / 2.0 - 1.0).abs()).fold(0.0, f32::max);
+        eprintln!("{what}: {} texels under the pane, worst {:.3} % off L_lm = 2", under.len(), worst * 100.0);
+        for v in &under {
+            assert!((v / 2.0 - 1.0).abs() < 0.02, "{what}: a texel under the pane has L_lm {v}, expected 2");
+        }
+    }
+    // Passing less than half the light, a pane is baked as opaque and shades
+    // the ground under it: the control that the test can fail.
+    let (under, primitives) = ground_under_a_pane(|b, m| b.transmission(m, 0.3));
+    assert_eq!(primitives, 2);
+    let mean = under.iter().sum::<f32>() / under.len() as f32;
+    eprintln!("under a pane baked as opaque: mean L_lm {mean} of 2");
+    assert!(mean < 1.2, "under a pane baked as opaque the ground should be in shade: mean L_lm {mean}");
 }

@@ -405,3 +405,37 @@ fn an_unlit_material_keeps_showing_its_own_colour() {
     let notices = report["scenes"][0]["notices"].to_string();
     assert!(notices.contains("material 1 'sign' is unlit (KHR_materials_unlit): its primitives keep it"), "{notices}");
 }
+
+#[test]
+fn a_glass_pane_keeps_its_own_material_and_takes_no_lightmap() {
+    let mut builder = SceneBuilder::new();
+    builder.object("ground", &MeshData::plane(4.0, 4.0, 4), [0.5, 0.5, 0.5, 1.0], [0.0; 3], Placement::default());
+    let glass = builder.material("window glass", [0.9, 0.95, 1.0, 1.0], [0.0; 3]);
+    builder.transmission(glass, 1.0);
+    let mesh = builder.mesh("pane", &MeshData::cuboid([1.0, 0.02, 1.0]), Some(glass));
+    builder.node("pane", mesh, Placement::at(glam::Vec3::Y * 0.3));
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("window.glb");
+    std::fs::write(&input, builder.to_glb()).unwrap();
+    let out = dir.path().join("out");
+    bake(&input, &out, &[]);
+    assert_valid(&out.join("window.glb"));
+
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let notices = report["scenes"][0]["notices"].to_string();
+    let expected = "material 1 'window glass' transmits light (KHR_materials_transmission, factor 1): its primitives \
+                    are left out of the bake";
+    assert!(notices.contains(expected), "no notice says '{expected}': {notices}");
+    let glb = std::fs::read(out.join("window.glb")).unwrap();
+    let json: serde_json::Value = serde_json::from_slice(&gltf::binary::Glb::from_slice(&glb).unwrap().json).unwrap();
+    let pane = &json["meshes"][1]["primitives"][0];
+    assert_eq!(pane["material"], serde_json::json!(glass), "the pane keeps its material: {pane}");
+    assert!(pane.pointer("/attributes/TEXCOORD_1").is_none() && pane.get("extensions").is_none(), "{pane}");
+    assert_eq!(
+        json["materials"][glass]["extensions"]["KHR_materials_transmission"]["transmissionFactor"],
+        serde_json::json!(1.0)
+    );
+    assert!(json["extensionsUsed"].as_array().unwrap().contains(&serde_json::json!("KHR_materials_transmission")));
+    // The ground is baked as usual.
+    assert!(json["meshes"][0]["primitives"][0].pointer("/attributes/TEXCOORD_1").is_some());
+}
