@@ -451,7 +451,14 @@ fn material_notices(source: &SourceAsset, materials: &[Material], used: &[usize]
         let material = source.document.materials().nth(m).expect("a used material exists");
         let textures = [("base colour", base_colour(&material).1), ("emissive", material.emissive_texture())];
         for (kind, info) in textures.into_iter().filter_map(|(kind, info)| Some((kind, info?))) {
-            if let Err(extension) = texture_image(&source.json, &info.texture()) {
+            let set = texture_set(&info);
+            if set > MAX_TEXTURE_SET {
+                notices.push(format!(
+                    "material {m} '{name}': its {kind} texture {} samples TEXCOORD_{set}, which bake does not read \
+                     (only TEXCOORD_0 and TEXCOORD_1): baked with its colour factors alone",
+                    info.texture().index()
+                ));
+            } else if let Err(extension) = texture_image(&source.json, &info.texture()) {
                 notices.push(format!(
                     "material {m} '{name}': its {kind} texture {} has only an extension's image ({extension}), \
                      which bake cannot decode: baked with its colour factors alone",
@@ -516,18 +523,26 @@ fn texture_image(json: &serde_json::Value, texture: &gltf::Texture) -> Result<us
 fn texture_ref(json: &serde_json::Value, info: &gltf::texture::Info) -> Option<TextureRef> {
     let sampler = info.texture().sampler();
     let wrap = [sampler.wrap_s().as_gl_enum(), sampler.wrap_t().as_gl_enum()];
-    let mut tex_coord = info.tex_coord();
     let mut transform = TextureRef::IDENTITY;
     if let Some(t) = info.texture_transform() {
         let [ox, oy] = t.offset();
         let [sx, sy] = t.scale();
         let (sin, cos) = t.rotation().sin_cos();
         transform = [[cos * sx, -sin * sy, ox], [sin * sx, cos * sy, oy]];
-        if let Some(set) = t.tex_coord() {
-            tex_coord = set;
-        }
     }
+    let tex_coord = Some(texture_set(info)).filter(|&set| set <= MAX_TEXTURE_SET)?;
     Some(TextureRef { image: texture_image(json, &info.texture()).ok()?, tex_coord, transform, wrap })
+}
+
+/// The highest TEXCOORD_n a material texture can sample in the bake: the
+/// scene keeps sets 0 and 1 only. A texture on a later set is baked as
+/// absent (with a notice), not through another set's coordinates.
+const MAX_TEXTURE_SET: u32 = 1;
+
+/// The TEXCOORD set a texture samples: its `texCoord`, or
+/// KHR_texture_transform's override of it.
+fn texture_set(info: &gltf::texture::Info) -> u32 {
+    info.texture_transform().and_then(|t| t.tex_coord()).unwrap_or(info.tex_coord())
 }
 
 /// Decodes every image a baked primitive's material samples, into linear

@@ -366,3 +366,28 @@ fn clear_glass_and_a_faint_blend_let_the_sky_through_while_frosted_glass_shades(
     eprintln!("under a pane baked as opaque: mean L_lm {mean} of 2");
     assert!(mean < 1.2, "under a pane baked as opaque the ground should be in shade: mean L_lm {mean}");
 }
+
+#[test]
+fn a_texture_on_a_set_bake_does_not_read_is_baked_as_absent_with_a_notice() {
+    // A black texture over a white factor: through TEXCOORD_0 the quad is
+    // black; through TEXCOORD_2 (KHR_texture_transform's override), which
+    // the scene does not keep, it takes the factor alone, not whatever
+    // another set's coordinates would read.
+    let on_set = |set: u32| {
+        quad(move |b, m| {
+            let t = b.png_texture(&solid([0, 0, 0, 255]), 10497);
+            b.base_color_texture(m, t, Some(json!({ "texCoord": set })));
+        })
+    };
+    for (set, expected) in [(0, 0.0), (2, 1.0)] {
+        let texels = albedos(&on_set(set));
+        assert!(!texels.is_empty());
+        for (p, albedo, _) in texels {
+            assert!((albedo[0] - expected).abs() < 0.003, "TEXCOORD_{set}: albedo {albedo:?} at {p}");
+        }
+    }
+    let notices = common::scene(&on_set(2), "set2").notices;
+    let expected = "material 0 'quad': its base colour texture 0 samples TEXCOORD_2, which bake does not read";
+    assert!(notices.iter().any(|n| n.starts_with(expected)), "{notices:#?}");
+    assert!(common::scene(&on_set(0), "set0").notices.iter().all(|n| !n.contains("TEXCOORD")));
+}
