@@ -355,7 +355,8 @@ fn collect_mesh(
 const SEE_THROUGH: f64 = 0.5;
 
 /// The notice for a material that lets most light through, whose
-/// primitives are left out of the bake (`None` for any other): clear glass
+/// primitives are left out of the bake (`None` for any other, and for one
+/// that glows): clear glass
 /// (KHR_materials_transmission), or a blend whose alpha, with no texture to
 /// vary it, is under [`SEE_THROUGH`]. Left out, a window lets the sun into
 /// the room, untinted and without the few percent its faces reflect, and
@@ -367,6 +368,11 @@ fn see_through(json: &serde_json::Value, m: usize) -> Option<String> {
     let what = format!("material {m} '{name}'");
     let after = "its primitives are left out of the bake (light passes them, untinted) and keep their material";
     let number = |pointer: &str| material.pointer(pointer).and_then(serde_json::Value::as_f64);
+    // A glowing bulb or lamp cover modelled as glass lights the room: it stays.
+    let emissive = (0..3).any(|c| number(&format!("/emissiveFactor/{c}")).is_some_and(|e| e > 0.0));
+    if emissive {
+        return None;
+    }
     let transmission = number("/extensions/KHR_materials_transmission/transmissionFactor").unwrap_or(0.0);
     if transmission >= SEE_THROUGH {
         let texture = match material.pointer("/extensions/KHR_materials_transmission/transmissionTexture") {

@@ -358,6 +358,14 @@ fn clear_glass_and_a_faint_blend_let_the_sky_through_while_frosted_glass_shades(
             assert!((v / 2.0 - 1.0).abs() < 0.02, "{what}: a texel under the pane has L_lm {v}, expected 2");
         }
     }
+    // A glowing pane (a lamp's cover modelled as glass) stays: its light counts.
+    let mut lamp = SceneBuilder::new();
+    let cover = lamp.material("lamp cover", [1.0; 4], [1.0, 0.9, 0.7]);
+    lamp.transmission(cover, 1.0);
+    let mesh = lamp.mesh("cover", &MeshData::cuboid([0.2, 0.2, 0.2]), Some(cover));
+    lamp.node("cover", mesh, Placement::default());
+    let glowing = common::scene(&lamp, "lamp");
+    assert_eq!(glowing.primitives.len(), 1, "{:?}", glowing.notices);
     // Passing less than half the light, a pane is baked as opaque and shades
     // the ground under it: the control that the test can fail.
     let (under, primitives) = ground_under_a_pane(|b, m| b.transmission(m, 0.3));
