@@ -4,12 +4,13 @@
 # - the Vulkan loader and Mesa's drivers, whose lavapipe runs wgpu on the CPU
 #   when there is no GPU;
 # - make, which runs the build-step example (pipeline/Makefile) and its test;
-# - Node.js (when there is no `node`), the Khronos glTF validator, gltfpack
-#   and glTF-Transform with Google's Draco library, from npm at the versions
-#   pinned in pipeline/package-lock.json, into pipeline/node_modules (ignored
-#   by git); tests/validator.rs runs the validator through
-#   pipeline/validate.mjs, tests/gltfpack.rs runs gltfpack, tests/draco.rs
-#   runs pipeline/draco.mjs.
+# - Node.js (when there is no `node`), the Khronos glTF validator, gltfpack,
+#   glTF-Transform with Google's Draco library and Binomial's Basis Universal
+#   encoder (ktx2-encoder), from npm at the versions pinned in
+#   pipeline/package-lock.json, into pipeline/node_modules (ignored by git);
+#   tests/validator.rs runs the validator through pipeline/validate.mjs,
+#   tests/gltfpack.rs runs gltfpack, tests/draco.rs runs pipeline/draco.mjs,
+#   tests/ktx2.rs runs pipeline/ktx2.mjs.
 set -eu
 cd "$(dirname "$0")"
 if [ "$(id -u)" -eq 0 ]; then sudo=""; else sudo="sudo"; fi
@@ -26,7 +27,7 @@ if [ -n "$missing" ]; then
     $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -q $missing
 fi
 
-for tool in gltf-validator gltfpack @gltf-transform/core @gltf-transform/extensions draco3dgltf; do
+for tool in gltf-validator gltfpack @gltf-transform/core @gltf-transform/extensions draco3dgltf ktx2-encoder; do
     pinned=$(node -p "require('./package-lock.json').packages['node_modules/$tool'].version")
     installed=$(node -p "require('./node_modules/$tool/package.json').version" 2>/dev/null || true)
     if [ "$installed" != "$pinned" ]; then

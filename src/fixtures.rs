@@ -512,6 +512,14 @@ impl SceneBuilder {
         self.texture(json!({ "extensions": { "EXT_texture_webp": { "source": image } } }), wrap)
     }
 
+    /// Adds a KTX2 file (Basis Universal, encoded elsewhere: bake has no
+    /// encoder) as an embedded image that only KHR_texture_basisu names (no
+    /// PNG fallback), as gltfpack `-tc` writes it; returns the texture index.
+    pub fn ktx2_texture(&mut self, ktx2: &[u8], wrap: u32) -> usize {
+        let image = self.embedded_image(ktx2, "image/ktx2");
+        self.texture(json!({ "extensions": { "KHR_texture_basisu": { "source": image } } }), wrap)
+    }
+
     fn embedded_image(&mut self, bytes: &[u8], mime: &str) -> usize {
         let view = self.push_view(bytes, None);
         self.images.push(json!({ "bufferView": view, "mimeType": mime }));
@@ -611,9 +619,11 @@ impl SceneBuilder {
             extensions_used.push("KHR_lights_punctual");
         }
         let mut extensions_required = Vec::new();
-        if self.textures.iter().any(|t| t.pointer("/extensions/EXT_texture_webp").is_some()) {
-            extensions_used.push("EXT_texture_webp");
-            extensions_required.push("EXT_texture_webp");
+        for extension in ["EXT_texture_webp", "KHR_texture_basisu"] {
+            if self.textures.iter().any(|t| t.pointer(&format!("/extensions/{extension}")).is_some()) {
+                extensions_used.push(extension);
+                extensions_required.push(extension);
+            }
         }
         let mut doc = json!({
             "asset": { "version": "2.0", "generator": "bake fixtures" },

@@ -18,7 +18,7 @@ use anyhow::{Context, Result, anyhow, bail, ensure};
 use glam::{DMat3, DMat4, DVec3};
 use gltf::mesh::Mode;
 
-use crate::asset::{SourceAsset, accessor, instancing, morph};
+use crate::asset::{SourceAsset, accessor, instancing, ktx2, morph};
 use crate::repeats;
 use crate::scene::{
     AlphaMode, LightKind, LinearImage, Material, PunctualLight, Scene, ScenePrimitive, TextureRef, choose_origin,
@@ -423,7 +423,7 @@ fn triangle_list(mode: Mode, drawn: &[u32]) -> Vec<u32> {
 /// What the bake does not follow in the used materials, one notice each:
 /// blending and transmission that let less than [`SEE_THROUGH`] of the
 /// light pass (or vary it by a texture) are baked as opaque, and a texture
-/// with only a KTX2 image as if it were absent.
+/// with only an AVIF image as if it were absent.
 fn material_notices(source: &SourceAsset, materials: &[Material], used: &[usize]) -> Vec<String> {
     let mut notices = Vec::new();
     for &m in used {
@@ -506,9 +506,9 @@ fn base_colour<'a>(m: &gltf::Material<'a>) -> ([f32; 4], Option<gltf::texture::I
 }
 
 /// The image a texture samples: its own `source` (PNG or JPEG), else the
-/// WebP image of EXT_texture_webp. Err names the extension whose image is
-/// all it has and bake cannot decode (KHR_texture_basisu's KTX2,
-/// EXT_texture_avif's AVIF).
+/// WebP image of EXT_texture_webp or the KTX2 image of KHR_texture_basisu.
+/// Err names the extension whose image is all it has and bake cannot decode
+/// (EXT_texture_avif's AVIF).
 fn texture_image(json: &serde_json::Value, texture: &gltf::Texture) -> Result<usize, String> {
     if let Some(image) = texture.source() {
         return Ok(image.index());
@@ -516,7 +516,9 @@ fn texture_image(json: &serde_json::Value, texture: &gltf::Texture) -> Result<us
     let extensions = json.pointer(&format!("/textures/{}/extensions", texture.index()));
     let extensions = extensions.and_then(serde_json::Value::as_object);
     // The asset's load checked that the image exists.
-    match extensions.and_then(|e| e.get("EXT_texture_webp")?.get("source")?.as_u64()) {
+    let decodable = ["EXT_texture_webp", "KHR_texture_basisu"];
+    let image = decodable.iter().find_map(|name| extensions?.get(*name)?.get("source")?.as_u64());
+    match image {
         Some(image) => Ok(image as usize),
         None => Err(extensions.map(|e| e.keys().cloned().collect::<Vec<_>>().join(", ")).unwrap_or_default()),
     }
@@ -575,11 +577,12 @@ fn decode_images(
             if !wanted {
                 return None;
             }
-            let decoded = source
-                .image_bytes(i)
-                .and_then(|(bytes, _)| image::load_from_memory(&bytes).map_err(|e| anyhow!("{e}")));
+            let decoded = source.image_bytes(i).and_then(|(bytes, _)| match ktx2::is_ktx2(&bytes) {
+                true => ktx2::decode(&bytes),
+                false => Ok(image::load_from_memory(&bytes).map_err(|e| anyhow!("{e}"))?.to_rgba8()),
+            });
             match decoded {
-                Ok(image) => Some(linear_image(&image.to_rgba8())),
+                Ok(image) => Some(linear_image(&image)),
                 Err(e) => {
                     notices.push(format!(
                         "image {i} could not be decoded ({e:#}): its material is baked with its colour factors alone"

@@ -6,41 +6,22 @@
 //! in pipeline/package-lock.json, installed by pipeline/setup.sh); without
 //! them these tests fail, they never skip.
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use bake::asset::{SourceAsset, accessor};
 use bake::report::Report;
 
-fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
-}
-
-/// Runs a Node script of pipeline/ with `args`; fails the test with its
-/// stderr when it fails.
-fn node(script: &str, args: &[&std::ffi::OsStr]) {
-    let run = Command::new("node")
-        .arg(repo(script))
-        .args(args)
-        .output()
-        .unwrap_or_else(|e| panic!("cannot run node ({e}): {script} needs Node.js; run ./pipeline/setup.sh"));
-    assert!(
-        run.status.success(),
-        "{script} {args:?} failed (run ./pipeline/setup.sh to install its packages): {}{}",
-        String::from_utf8_lossy(&run.stdout),
-        String::from_utf8_lossy(&run.stderr)
-    );
-}
-
 /// Writes fixture `name` Draco-compressed with encoder `flags`, and Google's
 /// decoding of that file; returns (compressed, decoded).
 fn compress(name: &str, dir: &Path, tag: &str, flags: &[&str]) -> (PathBuf, PathBuf) {
-    let input = repo(&format!("fixtures/{name}.glb"));
+    let input = common::repo(&format!("fixtures/{name}.glb"));
     let (compressed, decoded) = (dir.join(format!("{tag}.glb")), dir.join(format!("{tag}.decoded.glb")));
     let mut args = vec!["encode".as_ref(), input.as_os_str(), compressed.as_os_str()];
     args.extend(flags.iter().map(std::ffi::OsStr::new));
-    node("pipeline/draco.mjs", &args);
-    node("pipeline/draco.mjs", &["decode".as_ref(), compressed.as_os_str(), decoded.as_os_str()]);
+    common::node("pipeline/draco.mjs", &args);
+    common::node("pipeline/draco.mjs", &["decode".as_ref(), compressed.as_os_str(), decoded.as_os_str()]);
     (compressed, decoded)
 }
 
@@ -113,15 +94,7 @@ fn draco_meshes_decode_to_what_googles_decoder_gives() {
 
 /// Bakes `input` at 64² under the sun-and-sky fixture; returns its report.
 fn bake(input: &Path, out: &Path) -> Report {
-    let env = repo("fixtures/sky_sun.exr");
-    let output = Command::new(env!("CARGO_BIN_EXE_bake"))
-        .arg(input)
-        .args(["--env".as_ref(), env.as_os_str(), "-o".as_ref(), out.as_os_str()])
-        .args(["--max-atlas-size", "64", "--lights", "64", "--max-shots", "128", "-q"])
-        .output()
-        .expect("bake runs");
-    assert!(output.status.success(), "bake {}: {}", input.display(), String::from_utf8_lossy(&output.stderr));
-    serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap()
+    common::bake_file(input, out, &["--max-atlas-size", "64", "--lights", "64", "--max-shots", "128", "-q"])
 }
 
 #[test]
@@ -139,7 +112,7 @@ fn a_draco_file_bakes_as_its_decoded_form_does_into_a_valid_plain_file() {
         assert_eq!(stats(&ours), stats(&theirs), "{fixture}: each primitive's texels and mean");
 
         let baked = out_compressed.join(format!("{fixture}.glb"));
-        node("pipeline/validate.mjs", &[baked.as_os_str()]);
+        common::node("pipeline/validate.mjs", &[baked.as_os_str()]);
         let output = SourceAsset::load(&baked).unwrap();
         let listed = |key: &str| output.json.get(key).map(ToString::to_string).unwrap_or_default();
         for key in ["extensionsUsed", "extensionsRequired"] {

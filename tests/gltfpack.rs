@@ -6,6 +6,8 @@
 //! pipeline/package-lock.json and installed by pipeline/setup.sh; without
 //! it these tests fail, they never skip.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -13,14 +15,10 @@ use bake::fixtures::{MeshData, Placement, SceneBuilder};
 use bake::report::Report;
 use glam::{Quat, Vec3};
 
-fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
-}
-
 /// Runs gltfpack on `input` with `flags` and returns the written file.
 fn gltfpack(input: &Path, dir: &Path, name: &str, flags: &[&str]) -> PathBuf {
     let output = dir.join(format!("{name}.glb"));
-    let cli = repo("pipeline/node_modules/gltfpack/cli.js");
+    let cli = common::repo("pipeline/node_modules/gltfpack/cli.js");
     let run = Command::new("node")
         .arg(&cli)
         .args(["-i".as_ref(), input.as_os_str(), "-o".as_ref(), output.as_os_str()])
@@ -37,16 +35,7 @@ fn gltfpack(input: &Path, dir: &Path, name: &str, flags: &[&str]) -> PathBuf {
 
 /// Bakes `input` at 128² under the sun-and-sky fixture; returns its report.
 fn bake(input: &Path, out: &Path) -> Report {
-    let env = repo("fixtures/sky_sun.exr");
-    let args = ["--env".as_ref(), env.as_os_str(), "-o".as_ref(), out.as_os_str()];
-    let output = Command::new(env!("CARGO_BIN_EXE_bake"))
-        .arg(input)
-        .args(args)
-        .args(["--max-atlas-size", "128", "--lights", "128", "-q"])
-        .output()
-        .expect("bake runs");
-    assert!(output.status.success(), "bake {}: {}", input.display(), String::from_utf8_lossy(&output.stderr));
-    serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap()
+    common::bake_file(input, out, &["--max-atlas-size", "128", "--lights", "128", "-q"])
 }
 
 /// Each primitive's (texels, mean L_lm), in report order.
@@ -72,7 +61,7 @@ fn assert_bakes_alike(what: &str, packed: &[(usize, [f64; 3])], plain: &[(usize,
 #[test]
 fn quantized_and_meshopt_compressed_files_bake_as_the_plain_file_does() {
     let dir = tempfile::tempdir().unwrap();
-    let input = repo("fixtures/corner.glb");
+    let input = common::repo("fixtures/corner.glb");
     let plain = gltfpack(&input, dir.path(), "plain", &["-noq"]);
     let quantized = gltfpack(&input, dir.path(), "quantized", &[]);
     let compressed = gltfpack(&input, dir.path(), "compressed", &["-cc"]);

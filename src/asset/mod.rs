@@ -9,6 +9,7 @@
 pub mod accessor;
 pub mod draco;
 pub mod instancing;
+pub mod ktx2;
 pub mod meshopt;
 pub mod morph;
 
@@ -35,8 +36,8 @@ const SUPPORTED_REQUIRED: &[&str] = &[
     draco::EXTENSION,
 ];
 
-/// Extensions that give a texture an image in another format: WebP bake
-/// decodes; KTX2 and AVIF it carries through.
+/// Extensions that give a texture an image in another format: bake decodes
+/// WebP and KTX2 (Basis Universal) and carries AVIF through.
 const IMAGE_FORMAT_EXTENSIONS: &[&str] = &["EXT_texture_webp", "EXT_texture_avif", "KHR_texture_basisu"];
 
 /// A glTF asset loaded from `.gltf` or `.glb`.

@@ -87,3 +87,38 @@ pub fn values_of(baked: &Baked, p: u32) -> Vec<(bake::texelize::Texel, f32)> {
         .map(|(t, v)| (*t, v[0]))
         .collect()
 }
+
+/// `path` inside the repository.
+pub fn repo(path: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
+}
+
+/// Runs a Node script of pipeline/ with `args`; fails the test with its
+/// output when it fails (its npm packages come from ./pipeline/setup.sh).
+pub fn node(script: &str, args: &[&std::ffi::OsStr]) {
+    let run = std::process::Command::new("node")
+        .arg(repo(script))
+        .args(args)
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run node ({e}): {script} needs Node.js; run ./pipeline/setup.sh"));
+    assert!(
+        run.status.success(),
+        "{script} {args:?} failed (run ./pipeline/setup.sh to install its packages): {}{}",
+        String::from_utf8_lossy(&run.stdout),
+        String::from_utf8_lossy(&run.stderr)
+    );
+}
+
+/// Bakes `input` through the CLI under the sun-and-sky fixture with `args`
+/// into `out`; fails the test on a failed bake, else returns its report.
+pub fn bake_file(input: &Path, out: &Path, args: &[&str]) -> bake::report::Report {
+    let env = repo("fixtures/sky_sun.exr");
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_bake"))
+        .arg(input)
+        .args(["--env".as_ref(), env.as_os_str(), "-o".as_ref(), out.as_os_str()])
+        .args(args)
+        .output()
+        .expect("bake runs");
+    assert!(output.status.success(), "bake {}: {}", input.display(), String::from_utf8_lossy(&output.stderr));
+    serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap()
+}
