@@ -595,6 +595,13 @@ impl SceneBuilder {
         self.materials[material]["alphaMode"] = json!("BLEND");
     }
 
+    /// Takes `material`'s base colour texture away.
+    pub fn clear_base_color_texture(&mut self, material: usize) {
+        if let Some(pbr) = self.materials[material]["pbrMetallicRoughness"].as_object_mut() {
+            pbr.remove("baseColorTexture");
+        }
+    }
+
     /// Sets the alpha of `material`'s base colour factor.
     pub fn set_base_color_alpha(&mut self, material: usize, alpha: f32) {
         self.materials[material]["pbrMetallicRoughness"]["baseColorFactor"][3] = json!(alpha);

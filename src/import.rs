@@ -258,7 +258,11 @@ fn collect_mesh(
         };
         let material =
             material_before_a_bake(&source.json, mesh.index(), primitive.index()).or(primitive.material().index());
-        if let Some(notice) = material.and_then(|m| see_through(&source.json, m)) {
+        let see_through = |m: usize| {
+            let parsed = self::material(&source.json, source.document.materials().nth(m)?);
+            see_through(&source.json, m, &parsed)
+        };
+        if let Some(notice) = material.and_then(see_through) {
             // One notice per material, however many panes use it.
             if !notices.contains(&notice) {
                 notices.push(notice);
@@ -356,24 +360,23 @@ const SEE_THROUGH: f64 = 0.5;
 
 /// The notice for a material that lets most light through, whose
 /// primitives are left out of the bake (`None` for any other, and for one
-/// that glows): clear glass
-/// (KHR_materials_transmission), or a blend whose alpha, with no texture to
-/// vary it, is under [`SEE_THROUGH`]. Left out, a window lets the sun into
-/// the room, untinted and without the few percent its faces reflect, and
-/// keeps its own material, which viewers draw as glass; baked, it would
-/// shut the light out and show as an opaque pane.
-fn see_through(json: &serde_json::Value, m: usize) -> Option<String> {
+/// that glows): clear glass (KHR_materials_transmission), or a blend whose
+/// base colour alpha is under [`SEE_THROUGH`], which a texture or `COLOR_0`
+/// can only lower. Left out, a window lets the sun into the room, untinted
+/// and without the few percent its faces reflect, and keeps its own
+/// material, which viewers draw as glass; baked, it would shut the light
+/// out and show as an opaque pane. Reads the material as the bake does
+/// (`material`): a specular-glossiness blend's alpha is its diffuse alpha.
+fn see_through(json: &serde_json::Value, m: usize, parsed: &Material) -> Option<String> {
     let material = json.pointer(&format!("/materials/{m}"))?;
-    let name = material.get("name").and_then(serde_json::Value::as_str).unwrap_or("unnamed");
-    let what = format!("material {m} '{name}'");
+    let what = format!("material {m} '{}'", parsed.name.as_deref().unwrap_or("unnamed"));
     let after = "its primitives are left out of the bake (light passes them, untinted) and keep their material";
-    let number = |pointer: &str| material.pointer(pointer).and_then(serde_json::Value::as_f64);
     // A glowing bulb or lamp cover modelled as glass lights the room: it stays.
-    let emissive = (0..3).any(|c| number(&format!("/emissiveFactor/{c}")).is_some_and(|e| e > 0.0));
-    if emissive {
+    if parsed.emission.iter().any(|&e| e > 0.0) {
         return None;
     }
-    let transmission = number("/extensions/KHR_materials_transmission/transmissionFactor").unwrap_or(0.0);
+    let transmission = material.pointer("/extensions/KHR_materials_transmission/transmissionFactor");
+    let transmission = transmission.and_then(serde_json::Value::as_f64).unwrap_or(0.0);
     if transmission >= SEE_THROUGH {
         let texture = match material.pointer("/extensions/KHR_materials_transmission/transmissionTexture") {
             Some(_) => ", its transmission texture not read",
@@ -383,11 +386,8 @@ fn see_through(json: &serde_json::Value, m: usize) -> Option<String> {
             "{what} transmits light (KHR_materials_transmission, factor {transmission}{texture}): {after}"
         ));
     }
-    let blended = material.get("alphaMode").and_then(serde_json::Value::as_str) == Some("BLEND");
-    let alpha = number("/pbrMetallicRoughness/baseColorFactor/3").unwrap_or(1.0);
-    let textured = material.pointer("/pbrMetallicRoughness/baseColorTexture").is_some()
-        || material.pointer("/extensions/KHR_materials_pbrSpecularGlossiness").is_some();
-    (blended && !textured && alpha < SEE_THROUGH)
+    let alpha = parsed.base_color[3];
+    (parsed.alpha == AlphaMode::Blend && f64::from(alpha) < SEE_THROUGH)
         .then(|| format!("{what} is alpha-blended at alpha {alpha}, mostly see-through: {after}"))
 }
 
@@ -421,8 +421,9 @@ fn triangle_list(mode: Mode, drawn: &[u32]) -> Vec<u32> {
 }
 
 /// What the bake does not follow in the used materials, one notice each:
-/// blending and transmission that let less than [`SEE_THROUGH`] of the
-/// light pass (or vary it by a texture) are baked as opaque, and a texture
+/// blending is cut where a texture's alpha is under one half, else baked as
+/// opaque, and so is transmission that lets less than [`SEE_THROUGH`] of the
+/// light pass (or varies it by a texture); a texture
 /// with only an AVIF image as if it were absent.
 fn material_notices(source: &SourceAsset, materials: &[Material], used: &[usize]) -> Vec<String> {
     let mut notices = Vec::new();
@@ -435,9 +436,13 @@ fn material_notices(source: &SourceAsset, materials: &[Material], used: &[usize]
             ));
         }
         if materials[m].alpha == AlphaMode::Blend {
-            notices.push(format!(
-                "material {m} '{name}' is alpha-blended: baked as opaque (only MASK cut-outs let light through)"
-            ));
+            notices.push(match materials[m].cutoff() {
+                Some(cutoff) => format!(
+                    "material {m} '{name}' is alpha-blended: baked as a cut-out, light passes where its alpha is \
+                     under {cutoff} and is stopped elsewhere (partial transparency is not baked)"
+                ),
+                None => format!("material {m} '{name}' is alpha-blended at a constant alpha: baked as opaque"),
+            });
         }
         for (extension, factor) in [
             ("KHR_materials_transmission", "transmissionFactor"),

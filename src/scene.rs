@@ -114,9 +114,16 @@ pub enum AlphaMode {
     Opaque,
     /// Cut out where alpha < cutoff: light passes there.
     Mask(f32),
-    /// Blended transparency: baked as opaque (with a notice).
+    /// Blended transparency: with a base colour texture, light passes where
+    /// alpha < [`BLEND_CUTOFF`] (see [`Material::cutoff`]); without one, its
+    /// constant alpha makes it opaque (import leaves out one under 0.5).
     Blend,
 }
+
+/// Where a blend's texture lets light through: an alpha under one half.
+/// The bake's shadows are binary, so a blend is cut where it is mostly
+/// clear, as engines' lightmappers treat a transparent surface's alpha.
+pub const BLEND_CUTOFF: f32 = 0.5;
 
 /// What a surface does with light, in linear RGB.
 #[derive(Clone, Debug, PartialEq)]
@@ -133,6 +140,21 @@ pub struct Material {
     pub emissive_texture: Option<TextureRef>,
     pub alpha: AlphaMode,
     pub double_sided: bool,
+}
+
+impl Material {
+    /// The alpha under which light passes the surface, `None` for a surface
+    /// whose alpha never lets it through: a MASK's cut-off, and
+    /// [`BLEND_CUTOFF`] for a blend whose base colour texture varies its
+    /// alpha (foliage, fences and decals are often exported blended). The
+    /// export already keeps both kinds' holes in viewers.
+    pub fn cutoff(&self) -> Option<f32> {
+        match self.alpha {
+            AlphaMode::Mask(cutoff) => Some(cutoff),
+            AlphaMode::Blend if self.base_color_texture.is_some() => Some(BLEND_CUTOFF),
+            _ => None,
+        }
+    }
 }
 
 impl Default for Material {

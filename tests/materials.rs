@@ -186,34 +186,36 @@ fn red_textured_floor_bounces_red_light_onto_a_white_wall() {
 fn alpha_cut_out_lets_sunlight_through_the_holes() {
     // A canopy 1 m above the ground, opaque on its −X half and cut out
     // (alpha 0) on its +X half, under a sun overhead: the ground is lit
-    // under the holes and shadowed under the solid half.
-    let gpu = common::gpu();
-    let mut builder = SceneBuilder::new();
-    builder.object("ground", &MeshData::plane(8.0, 8.0, 4), [0.5, 0.5, 0.5, 1.0], [0.0; 3], Placement::default());
-    let canopy = builder.material("canopy", [0.5, 0.5, 0.5, 1.0], [0.0; 3]);
-    let t = builder.png_texture(&halves([128, 128, 128, 255], [128, 128, 128, 0]), 33071);
-    builder.base_color_texture(canopy, t, None);
-    builder.alpha_mask(canopy, 0.5);
-    let mesh = builder.mesh("canopy", &MeshData::plane(4.0, 4.0, 2), Some(canopy));
-    builder.node(
-        "canopy",
-        mesh,
-        Placement::at(Vec3::new(0.0, 1.0, 0.0)).rotated(Quat::from_rotation_x(180f32.to_radians())),
-    );
-    let sun = EnvironmentMap::from_fn(512, 256, |d| if d[1] > 0.999 { [1000.0; 3] } else { [0.0; 3] });
-    let lights = common::lights(&sun, LightMode::Budget { count: 16 });
-    let baked = common::bake(&gpu, &builder, &lights, &common::options(128));
-    let ground = common::values_of(&baked, 0);
-    let mean = |inside: &dyn Fn(Vec3) -> bool| {
-        let v: Vec<f32> = ground.iter().filter(|(t, _)| inside(t.position())).map(|(_, v)| *v).collect();
-        v.iter().sum::<f32>() / v.len() as f32
-    };
-    let under_solid = mean(&|p| p.x < -0.5 && p.x > -1.5 && p.z.abs() < 1.5);
-    let under_holes = mean(&|p| p.x > 0.5 && p.x < 1.5 && p.z.abs() < 1.5);
-    let open = mean(&|p| p.x.abs() > 3.0);
-    eprintln!("ground under the solid half {under_solid:.3}, under the holes {under_holes:.3}, in the open {open:.3}");
-    assert!(under_solid < 0.1 * open, "the solid half casts a shadow");
-    assert!(under_holes > 0.9 * open, "the cut-out half lets the sun through");
+    // under the holes and shadowed under the solid half. A blend whose
+    // texture holds the alpha is cut the same way (at alpha 0.5): foliage
+    // and fences are often exported blended.
+    for mode in ["MASK", "BLEND"] {
+        let (under_solid, under_holes, open) = ground_under_a_canopy(&|b, canopy| match mode {
+            "MASK" => b.alpha_mask(canopy, 0.5),
+            _ => b.alpha_blend(canopy),
+        });
+        eprintln!(
+            "{mode}: ground under the solid half {under_solid:.3}, under the holes {under_holes:.3}, open {open:.3}"
+        );
+        assert!(under_solid < 0.1 * open, "{mode}: the solid half casts a shadow");
+        assert!(under_holes > 0.9 * open, "{mode}: the cut-out half lets the sun through");
+    }
+    // A blend without a texture has no holes: at a constant alpha of 0.6
+    // it is baked as opaque (the texels under both halves are in shadow).
+    let (under_solid, under_holes, open) = ground_under_a_canopy(&|b, canopy| {
+        b.alpha_blend(canopy);
+        b.set_base_color_alpha(canopy, 0.6);
+        b.clear_base_color_texture(canopy);
+    });
+    eprintln!("constant blend: under one half {under_solid:.3}, the other {under_holes:.3}, open {open:.3}");
+    assert!(under_solid < 0.1 * open && under_holes < 0.1 * open, "the constant blend shades the ground");
+}
+
+/// Mean L_lm on the ground under a canopy whose texture is opaque on its
+/// −X half and clear on its +X half; `alpha` sets its alpha mode.
+fn ground_under_a_canopy(alpha: Dress) -> (f32, f32, f32) {
+    let texture = |b: &mut SceneBuilder| b.png_texture(&halves([128, 128, 128, 255], [128, 128, 128, 0]), 33071);
+    common::ground_under_a_canopy(&texture, alpha)
 }
 
 #[test]
@@ -305,7 +307,7 @@ fn transmissive_and_blended_materials_that_pass_little_light_are_named_in_a_noti
     for expected in [
         "material 0 'glass' transmits light (KHR_materials_transmission): baked as opaque",
         "material 1 'leaf' transmits light (KHR_materials_diffuse_transmission): baked as opaque",
-        "material 2 'tinted' is alpha-blended: baked as opaque",
+        "material 2 'tinted' is alpha-blended at a constant alpha: baked as opaque",
     ] {
         assert!(notices.iter().any(|n| n.contains(expected)), "no notice says '{expected}'");
     }
@@ -341,11 +343,24 @@ fn ground_under_a_pane(dress: impl Fn(&mut SceneBuilder, usize)) -> (Vec<f32>, u
 fn clear_glass_and_a_faint_blend_let_the_sky_through_while_frosted_glass_shades() {
     // Left out of the bake, a see-through pane lets the ground see the whole
     // sky: L_lm = L = 2, as with nothing over it (tests/horizon.rs).
-    let clear: [(&str, Dress); 2] = [
+    // A texture can only lower a blend's alpha, so a textured blend at a
+    // factor under 0.5 is as see-through; a specular-glossiness blend's
+    // alpha is its diffuse factor's.
+    let clear: [(&str, Dress); 4] = [
         ("clear glass", &|b, m| b.transmission(m, 1.0)),
         ("a blend at alpha 0.2", &|b, m| {
             b.alpha_blend(m);
             b.set_base_color_alpha(m, 0.2);
+        }),
+        ("a textured blend at alpha 0.3", &|b, m| {
+            let t = b.png_texture(&solid([255, 255, 255, 255]), 10497);
+            b.base_color_texture(m, t, None);
+            b.alpha_blend(m);
+            b.set_base_color_alpha(m, 0.3);
+        }),
+        ("a specular-glossiness blend at diffuse alpha 0.2", &|b, m| {
+            b.specular_glossiness(m, [0.9, 0.9, 0.9, 0.2], None);
+            b.alpha_blend(m);
         }),
     ];
     for (what, dress) in clear {

@@ -477,16 +477,20 @@ fn emissive_texture_scales_the_form_factor() {
 type TextureSetup<'a> = (&'a RgbaImage, u32, Option<Value>);
 
 /// A black 2×2 m canopy 1 m above the origin, facing down, alpha-MASKed at
-/// 0.5 with base colour alpha `alpha` × `texture` (TEXCOORD_0's u runs from 0
-/// at x = −1 to 1 at x = +1), under a sky of radiance 1 above the horizon.
-fn canopy_estimate(alpha: f32, texture: Option<TextureSetup>) -> Estimate {
+/// 0.5 (BLEND with `blend`) with base colour alpha `alpha` × `texture`
+/// (TEXCOORD_0's u runs from 0 at x = −1 to 1 at x = +1), under a sky of
+/// radiance 1 above the horizon.
+fn canopy_estimate(alpha: f32, texture: Option<TextureSetup>, blend: bool) -> Estimate {
     let mut builder = SceneBuilder::new();
     let material = builder.material("canopy", [0.0, 0.0, 0.0, alpha], [0.0; 3]);
     if let Some((image, wrap, transform)) = texture {
         let t = builder.png_texture(image, wrap);
         builder.base_color_texture(material, t, transform);
     }
-    builder.alpha_mask(material, 0.5);
+    match blend {
+        true => builder.alpha_blend(material),
+        false => builder.alpha_mask(material, 0.5),
+    }
     let mesh = builder.mesh("canopy", &MeshData::plane(2.0, 2.0, 2), Some(material));
     builder.node("canopy", mesh, Placement::at(Vec3::new(0.0, 1.0, 0.0)).rotated(Quat::from_rotation_x(PI as f32)));
     let scene = scene(&builder);
@@ -529,9 +533,15 @@ fn alpha_cut_outs_let_the_sky_through() {
         ),
     ];
     for (name, alpha, texture, solid_factor) in cases {
-        let e = canopy_estimate(alpha, texture);
+        let e = canopy_estimate(alpha, texture, false);
         check(&format!("canopy, {name}"), &e, [1.0 - solid_factor; 3], 4.0, 0.02);
     }
+    // A blend is cut where its texture's alpha is under 0.5, as the bake
+    // cuts it; without a texture, at a constant alpha of 0.6, it is solid.
+    let e = canopy_estimate(1.0, Some((&half, clamp, None)), true);
+    check("blended canopy, left half solid", &e, [1.0 - full / 2.0; 3], 4.0, 0.02);
+    let e = canopy_estimate(0.6, None, true);
+    check("blended canopy, constant alpha 0.6", &e, [1.0 - full; 3], 4.0, 0.02);
 }
 
 fn sphere_on_ground(scale: f32) -> SceneBuilder {

@@ -9,7 +9,7 @@ use bytemuck::{Pod, Zeroable};
 use image::{ImageBuffer, Rgba};
 
 use super::Gpu;
-use crate::scene::{AlphaMode, LinearImage, Scene, TextureRef};
+use crate::scene::{LinearImage, Scene, TextureRef};
 
 /// Largest texture side kept: a lightmap texel covers many texture texels,
 /// so more detail would only be averaged away.
@@ -94,12 +94,7 @@ impl Materials {
             .chain(std::iter::once(&default))
             .map(|m| GpuMaterial {
                 base_color: m.base_color,
-                emission: [
-                    m.emission[0],
-                    m.emission[1],
-                    m.emission[2],
-                    if let AlphaMode::Mask(cutoff) = m.alpha { cutoff } else { -1.0 },
-                ],
+                emission: [m.emission[0], m.emission[1], m.emission[2], m.cutoff().unwrap_or(-1.0)],
                 base_texture: texture_ref(&m.base_color_texture),
                 emissive_texture: texture_ref(&m.emissive_texture),
             })

@@ -27,9 +27,11 @@
 //!
 //! Materials are the bake's: ρ(q) is baseColorFactor RGB × the base colour
 //! texture's RGB at q, clamped to [0, 1]; Le(q) is the emission × the emissive
-//! texture's RGB, clamped to ≥ 0. An alpha-MASK surface is absent (from both
+//! texture's RGB, clamped to ≥ 0. A cut-out surface (alpha MASK, or BLEND
+//! with a base colour texture: `Material::cutoff`) is absent (from both
 //! sides, for every ray) where baseColorFactor alpha × the base texture's
-//! alpha < the cut-off; BLEND is opaque, as the bake treats it. A texture
+//! alpha < the cut-off; a BLEND without a texture is opaque, as the bake
+//! treats it. A texture
 //! whose image was not decoded is white with alpha 1, and a UV set the mesh
 //! lacks reads as (0, 0), as the bake's vertex buffers fill it.
 //!
@@ -107,7 +109,7 @@ use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
 use crate::environment::EnvironmentMap;
-use crate::scene::{AlphaMode, LinearImage, PunctualLight, Scene, ScenePrimitive, TextureRef};
+use crate::scene::{LinearImage, PunctualLight, Scene, ScenePrimitive, TextureRef};
 use bvh::{Bvh, NO_TEXCOORDS, Triangle};
 use sampling::EnvSampler;
 pub(crate) use sampling::{Rng, basis, cosine_hemisphere};
@@ -222,10 +224,7 @@ impl SurfaceMaterial {
             let image = image_slots.get(t.image).copied().flatten()?;
             Some(Texture::new(t, image))
         };
-        let cutoff = match m.alpha {
-            AlphaMode::Mask(c) if c >= 0.0 => Some(c as f64),
-            _ => None,
-        };
+        let cutoff = m.cutoff().filter(|&c| c >= 0.0).map(f64::from);
         SurfaceMaterial {
             base_color: DVec3::new(finite(m.base_color[0]), finite(m.base_color[1]), finite(m.base_color[2])),
             alpha: m.base_color[3] as f64,
@@ -353,16 +352,16 @@ fn scene_triangles(scene: &Scene) -> Vec<(usize, usize, Triangle)> {
 }
 
 /// The scene's decoded, well-formed images that some material samples
-/// (with `cut_outs_only`, only those that cut out an alpha-MASK material),
+/// (with `cut_outs_only`, only those that cut out a material's holes),
 /// copied once, and for each scene image its index among them (`None`:
 /// sampled as white).
 fn usable_images(scene: &Scene, cut_outs_only: bool) -> (Vec<LinearImage>, Vec<Option<usize>>) {
     let mut sampled = vec![false; scene.images.len()];
     for m in &scene.materials {
-        let textures = match (cut_outs_only, m.alpha) {
+        let textures = match (cut_outs_only, m.cutoff()) {
             (false, _) => [&m.base_color_texture, &m.emissive_texture],
-            (true, AlphaMode::Mask(_)) => [&m.base_color_texture, &None],
-            (true, _) => [&None, &None],
+            (true, Some(_)) => [&m.base_color_texture, &None],
+            (true, None) => [&None, &None],
         };
         for t in textures.into_iter().flatten() {
             if let Some(s) = sampled.get_mut(t.image) {
@@ -485,8 +484,8 @@ impl Reference {
         }
     }
 
-    /// Whether `tri` is cut out at barycentrics (u, v): its material is an
-    /// alpha MASK and base colour alpha × the base texture's alpha falls
+    /// Whether `tri` is cut out at barycentrics (u, v): its material has a
+    /// cut-off (`Material::cutoff`) and base colour alpha × the base texture's alpha falls
     /// below the cut-off (the bake's casters' test, so NaN alpha is solid).
     fn is_cut_out(&self, tri: &Triangle, u: f64, v: f64) -> bool {
         let m = &self.materials[tri.material as usize];

@@ -1,7 +1,8 @@
 //! Shadow casters for the depth maps of both solve passes: every triangle of
 //! the scene in world space, wound counter-clockwise about its front side's
 //! normal and drawn from both sides (a one-sided plane still blocks light).
-//! Triangles of alpha-MASK materials come last and are drawn with a
+//! Triangles of cut-out materials (`Material::cutoff`: alpha MASK, or a
+//! BLEND with a base colour texture) come last and are drawn with a
 //! fragment shader that discards their cut-out texels, so light passes
 //! through the holes.
 

@@ -170,9 +170,9 @@ impl Cover {
 fn covering_triangles(scene: &Scene) -> Vec<Option<Cover>> {
     let mut covers = Vec::new();
     for primitive in &scene.primitives {
-        let alpha = scene.material(primitive).alpha;
-        let cut_out = matches!(alpha, AlphaMode::Mask(_));
-        let see_through = alpha == AlphaMode::Blend;
+        let material = scene.material(primitive);
+        let cut_out = material.cutoff().is_some();
+        let see_through = material.alpha == AlphaMode::Blend;
         let repeat = crate::repeats::mask(&primitive.repeats, primitive.triangle_count());
         for t in (0..primitive.triangle_count()).filter(|&t| !repeat[t]) {
             let normal = primitive.face_normal(t);

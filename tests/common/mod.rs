@@ -122,3 +122,37 @@ pub fn bake_file(input: &Path, out: &Path, args: &[&str]) -> bake::report::Repor
     assert!(output.status.success(), "bake {}: {}", input.display(), String::from_utf8_lossy(&output.stderr));
     serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap()
 }
+
+/// Mean L_lm on a grey 8 m ground (under the canopy's −X half, under its
+/// +X half, in the open) beneath a 4 m canopy 1 m up, facing down, under a
+/// sun overhead. The canopy's base colour texture is `texture`'s (one whose
+/// alpha holds its left half, u < 0.5, opaque, lies over −X); `alpha` sets
+/// its alpha mode.
+pub fn ground_under_a_canopy(
+    texture: &dyn Fn(&mut SceneBuilder) -> usize,
+    alpha: &dyn Fn(&mut SceneBuilder, usize),
+) -> (f32, f32, f32) {
+    use bake::fixtures::{MeshData, Placement};
+    use glam::{Quat, Vec3};
+    let gpu = gpu();
+    let mut builder = SceneBuilder::new();
+    builder.object("ground", &MeshData::plane(8.0, 8.0, 4), [0.5, 0.5, 0.5, 1.0], [0.0; 3], Placement::default());
+    let canopy = builder.material("canopy", [0.5, 0.5, 0.5, 1.0], [0.0; 3]);
+    let t = texture(&mut builder);
+    builder.base_color_texture(canopy, t, None);
+    alpha(&mut builder, canopy);
+    let mesh = builder.mesh("canopy", &MeshData::plane(4.0, 4.0, 2), Some(canopy));
+    let over = Placement::at(Vec3::new(0.0, 1.0, 0.0)).rotated(Quat::from_rotation_x(180f32.to_radians()));
+    builder.node("canopy", mesh, over);
+    let sun = EnvironmentMap::from_fn(512, 256, |d| if d[1] > 0.999 { [1000.0; 3] } else { [0.0; 3] });
+    let lights = lights(&sun, LightMode::Budget { count: 16 });
+    let baked = bake(&gpu, &builder, &lights, &options(128));
+    let ground = values_of(&baked, 0);
+    let mean = |inside: &dyn Fn(Vec3) -> bool| {
+        let v: Vec<f32> = ground.iter().filter(|(t, _)| inside(t.position())).map(|(_, v)| *v).collect();
+        v.iter().sum::<f32>() / v.len() as f32
+    };
+    let under_left = mean(&|p| p.x < -0.5 && p.x > -1.5 && p.z.abs() < 1.5);
+    let under_right = mean(&|p| p.x > 0.5 && p.x < 1.5 && p.z.abs() < 1.5);
+    (under_left, under_right, mean(&|p| p.x.abs() > 3.0))
+}
