@@ -199,7 +199,7 @@ fn render(gpu: &Gpu, scene: &Scene, azimuth: f32, elevation: f32) -> Result<Vec<
             material.base_color_texture = material.emissive_texture.take();
         }
         let texture_ref = material.base_color_texture.as_ref();
-        let image = texture_ref.and_then(|t| scene.images[t.image].as_ref());
+        let image = texture_ref.and_then(|t| scene.images[t.image].as_deref());
         let uvs = match texture_ref.map(|t| t.tex_coord) {
             Some(1) => primitive.uv1.as_ref(),
             Some(_) => primitive.uv0.as_ref(),

@@ -13,6 +13,7 @@
 //! coordinates 100 km out are 8 mm apart, too coarse for shadow tests.
 
 use std::path::Path;
+use std::sync::Arc;
 
 use anyhow::{Context, Result, anyhow, bail, ensure};
 use glam::{DMat3, DMat4, DVec3};
@@ -564,7 +565,7 @@ fn decode_images(
     source: &SourceAsset,
     scene_materials: &[Material],
     used: &[usize],
-) -> (Vec<Option<LinearImage>>, Vec<String>) {
+) -> (Vec<Option<Arc<LinearImage>>>, Vec<String>) {
     let mut notices = Vec::new();
     let mut wanted = vec![false; source.document.images().len()];
     for &m in used {
@@ -587,7 +588,7 @@ fn decode_images(
                 false => Ok(image::load_from_memory(&bytes).map_err(|e| anyhow!("{e}"))?.to_rgba8()),
             });
             match decoded {
-                Ok(image) => Some(linear_image(&image)),
+                Ok(image) => Some(Arc::new(linear_image(&image))),
                 Err(e) => {
                     notices.push(format!(
                         "image {i} could not be decoded ({e:#}): its material is baked with its colour factors alone"

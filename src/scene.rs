@@ -7,6 +7,8 @@
 //! position), so a scene far from glTF's origin keeps f32 precision; every
 //! stage after import works in these scene coordinates.
 
+use std::sync::Arc;
+
 use glam::{DVec3, Vec3};
 
 use crate::asset::SourceAsset;
@@ -272,7 +274,9 @@ pub struct Scene {
     pub materials: Vec<Material>,
     /// One per glTF image, index for index: decoded when a baked material
     /// samples it (`None` otherwise, or when it could not be decoded).
-    pub images: Vec<Option<LinearImage>>,
+    /// Shared, not copied, by the CPU scenes (`reference`): a 4096² image
+    /// holds 256 MB.
+    pub images: Vec<Option<Arc<LinearImage>>>,
     /// The KHR_lights_punctual lights the default scene's nodes place, each
     /// with light in it: the bake's light sources besides the environment
     /// and emissive surfaces.

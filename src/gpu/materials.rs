@@ -68,7 +68,7 @@ impl Materials {
         for (i, image) in scene.images.iter().enumerate() {
             if let Some(image) = image {
                 layer_of[i] = decoded.len() as u32;
-                decoded.push(image);
+                decoded.push(image.as_ref());
             }
         }
         let size = decoded

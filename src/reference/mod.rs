@@ -105,6 +105,8 @@ mod sampling;
 mod texture;
 mod trace;
 
+use std::sync::Arc;
+
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
@@ -292,8 +294,8 @@ fn triangle_colors(p: &ScenePrimitive, t: usize) -> [DVec3; 3] {
 pub struct Reference {
     bvh: Bvh,
     materials: Vec<SurfaceMaterial>,
-    /// The decoded images the materials sample, each once.
-    images: Vec<LinearImage>,
+    /// The decoded images the materials sample, shared with the scene.
+    images: Vec<Arc<LinearImage>>,
     /// UV sets of the triangles whose material is textured or whose
     /// primitive has vertex colours (`Triangle::texcoords`).
     texcoords: Vec<TriangleTexcoords>,
@@ -353,9 +355,9 @@ fn scene_triangles(scene: &Scene) -> Vec<(usize, usize, Triangle)> {
 
 /// The scene's decoded, well-formed images that some material samples
 /// (with `cut_outs_only`, only those that cut out a material's holes),
-/// copied once, and for each scene image its index among them (`None`:
+/// shared with the scene, and for each scene image its index among them (`None`:
 /// sampled as white).
-fn usable_images(scene: &Scene, cut_outs_only: bool) -> (Vec<LinearImage>, Vec<Option<usize>>) {
+fn usable_images(scene: &Scene, cut_outs_only: bool) -> (Vec<Arc<LinearImage>>, Vec<Option<usize>>) {
     let mut sampled = vec![false; scene.images.len()];
     for m in &scene.materials {
         let textures = match (cut_outs_only, m.cutoff()) {
@@ -376,7 +378,7 @@ fn usable_images(scene: &Scene, cut_outs_only: bool) -> (Vec<LinearImage>, Vec<O
         .zip(sampled)
         .map(|(image, sampled)| {
             let image = image.as_ref().filter(|i| sampled && texture::is_usable(i))?;
-            images.push(image.clone());
+            images.push(Arc::clone(image));
             Some(images.len() - 1)
         })
         .collect();
@@ -396,7 +398,7 @@ impl Reference {
     }
 
     /// The scene's surfaces for shadow rays alone (`blocked`,
-    /// `first_surface`): of its images only those that cut out are copied,
+    /// `first_surface`): of its images only those that cut out are kept,
     /// so its estimates are not the scene's (textures read as white).
     pub(crate) fn for_shadow_rays(scene: &Scene) -> Reference {
         Reference::build(scene, None, &ReferenceOptions::default(), true)

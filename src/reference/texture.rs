@@ -13,6 +13,8 @@
 
 use glam::{DVec2, DVec4};
 
+use std::sync::Arc;
+
 use crate::scene::{LinearImage, TextureRef};
 
 /// glTF sampler codes (OpenGL enums) of the wrap modes other than repeat.
@@ -82,7 +84,7 @@ impl Texture {
     }
 
     /// The linear RGBA at a point whose TEXCOORD_0 and TEXCOORD_1 are `uv`.
-    pub(super) fn sample(&self, images: &[LinearImage], uv: [DVec2; 2]) -> DVec4 {
+    pub(super) fn sample(&self, images: &[Arc<LinearImage>], uv: [DVec2; 2]) -> DVec4 {
         bilinear(&images[self.image], self.coordinates(uv[self.set]), self.wrap)
     }
 
@@ -226,7 +228,7 @@ mod tests {
 
     #[test]
     fn texture_applies_its_transform_and_reads_its_uv_set() {
-        let images = [ramp(4, 4)];
+        let images = [Arc::new(ramp(4, 4))];
         let reference = TextureRef {
             image: 7,
             tex_coord: 1,
