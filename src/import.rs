@@ -40,6 +40,10 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
         .ok_or_else(|| anyhow!("the file has no scene to bake"))?;
 
     let mut notices = Vec::new();
+    let materials: Vec<Material> = document.materials().map(|m| material(&source.json, m)).collect();
+    // Per material, the notice that leaves its primitives out (`see_through`).
+    let left_out: Vec<Option<String>> =
+        materials.iter().enumerate().map(|(m, parsed)| see_through(&source.json, m, parsed)).collect();
     let mut gathered = Vec::new();
     // Punctual lights, positioned in world coordinates until the origin is known.
     let mut lights = Vec::new();
@@ -68,7 +72,7 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
         }
         if let Some(mesh) = node.mesh() {
             match instancing::read(&source, node.index())? {
-                None => collect_mesh(&source, &node, None, &mesh, world, &mut gathered, &mut notices)?,
+                None => collect_mesh(&source, &left_out, &node, None, world, &mut gathered, &mut notices)?,
                 Some(instances) => {
                     notices.push(format!(
                         "{} is drawn as {} GPU instances ({}): each is baked with its own lightmap region and \
@@ -79,7 +83,7 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
                     ));
                     for (k, placement) in instances.placements.iter().enumerate() {
                         let world = world * placement.matrix();
-                        collect_mesh(&source, &node, Some(k), &mesh, world, &mut gathered, &mut notices)?;
+                        collect_mesh(&source, &left_out, &node, Some(k), world, &mut gathered, &mut notices)?;
                     }
                 }
             }
@@ -105,7 +109,6 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
         light.position -= DVec3::from(origin);
     }
 
-    let materials: Vec<Material> = document.materials().map(|m| material(&source.json, m)).collect();
     let mut used: Vec<usize> = primitives.iter().filter_map(|p| p.material).collect();
     used.sort();
     used.dedup();
@@ -223,13 +226,14 @@ fn finish_primitives(gathered: Vec<Gathered>, notices: &mut Vec<String>) -> Resu
 
 fn collect_mesh(
     source: &SourceAsset,
+    left_out: &[Option<String>],
     node: &gltf::Node,
     instance: Option<usize>,
-    mesh: &gltf::Mesh,
     world: DMat4,
     gathered: &mut Vec<Gathered>,
     notices: &mut Vec<String>,
 ) -> Result<()> {
+    let Some(mesh) = &node.mesh() else { return Ok(()) };
     let what = describe(node, mesh, instance);
     if node.skin().is_some() {
         notices.push(format!("{what} is skinned (not static): left out of the bake"));
@@ -259,11 +263,7 @@ fn collect_mesh(
         };
         let material =
             material_before_a_bake(&source.json, mesh.index(), primitive.index()).or(primitive.material().index());
-        let see_through = |m: usize| {
-            let parsed = self::material(&source.json, source.document.materials().nth(m)?);
-            see_through(&source.json, m, &parsed)
-        };
-        if let Some(notice) = material.and_then(see_through) {
+        if let Some(notice) = material.and_then(|m| left_out.get(m).cloned().flatten()) {
             // One notice per material, however many panes use it.
             if !notices.contains(&notice) {
                 notices.push(notice);

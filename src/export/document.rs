@@ -221,7 +221,7 @@ fn sniff_image_mime(bytes: &[u8]) -> Option<&'static str> {
         Some("image/jpeg")
     } else if bytes.len() >= 12 && &bytes[0..4] == b"RIFF" && &bytes[8..12] == b"WEBP" {
         Some("image/webp")
-    } else if bytes.starts_with(b"\xABKTX 20\xBB\r\n\x1a\n") {
+    } else if crate::asset::ktx2::is_ktx2(bytes) {
         Some("image/ktx2")
     } else {
         None
