@@ -14,7 +14,11 @@
 //!   shines in under the tube).
 //!
 //! A texel is in contact when one of `PROBE_SIDE`² cosine rays meets a
-//! surface within `REACH_CELLS` shooter patches. Its bounced light becomes
+//! surface within `REACH_CELLS` shooter patches; a texel that only borders
+//! a chart (no area) too, since a viewer's bilinear filter reads it at the
+//! chart's edge (left out, those beside a ring's contact kept 0.76 of the
+//! path tracer's light while the chart's inner texels were fixed). Its
+//! bounced light becomes
 //! the mean outgoing radiance (albedo · L_lm + emission) of the texels that
 //! `GATHER_SIDE`² stratified cosine rays meet, which is L_lm = E/π by
 //! definition; what each ray meets is found once, and the gather is
@@ -128,13 +132,8 @@ pub fn fix(
     let start = std::time::Instant::now();
     let tracer = Tracer::new(scene, occluders, texels, hidden, texel_size);
     let reach = REACH_CELLS * cell;
-    let probes: Vec<Option<Probe>> = (0..texels.texels.len())
-        .into_par_iter()
-        .map(|i| {
-            let t = &texels.texels[i];
-            if t.area > 0.0 { tracer.probe(t, i, reach) } else { None }
-        })
-        .collect();
+    let probes: Vec<Option<Probe>> =
+        (0..texels.texels.len()).into_par_iter().map(|i| tracer.probe(&texels.texels[i], i, reach)).collect();
     let contacts: Vec<(usize, Probe)> = probes.into_iter().enumerate().filter_map(|(i, p)| p.map(|p| (i, p))).collect();
     // Each texel's direct light (traced, or the direct pass's) and what its
     // gather rays meet; none where a ray met a surface light passes.
