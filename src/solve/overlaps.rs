@@ -25,7 +25,7 @@ use crate::scene::{AlphaMode, Scene};
 use crate::texelize::TexelSet;
 
 /// Two triangles face the same way when their normals are within about 2°.
-const SAME_FACING_COS: f32 = 0.9995;
+pub(super) const SAME_FACING_COS: f32 = 0.9995;
 
 /// A covering triangle: its corners wound counter-clockwise about `normal`.
 struct Cover {
