@@ -115,10 +115,9 @@ pub struct Direct<'a> {
 
 /// Replaces the light of texels in contact with another surface by light
 /// traced along rays (module docs). `hidden` marks texels under an opaque
-/// surface (no light; rays meeting their place through the surface take its
-/// light, `Tracer::texel_at`). `direct`
-/// is each texel's direct light, `lightmap` the solution so far (direct and
-/// bounced), updated in place. `cell` is the world width of a shooter
+/// surface (no light; what rays meeting their place take: `Tracer::texel_at`).
+/// `direct` is each texel's direct light, `lightmap` the solution so far
+/// (direct and bounced), updated in place. `cell` is the world width of a shooter
 /// patch's cell, `texel_size` that of a lightmap texel.
 #[allow(clippy::too_many_arguments)]
 pub fn fix(
@@ -138,7 +137,7 @@ pub fn fix(
     // would take its underside's).
     let probes: Vec<Option<Probe>> = (0..texels.texels.len())
         .into_par_iter()
-        .map(|i| if hidden.is_some_and(|h| h[i]) { None } else { tracer.probe(&texels.texels[i], i, reach) })
+        .map(|i| if tracer.is_hidden(i as u32) { None } else { tracer.probe(&texels.texels[i], i, reach) })
         .collect();
     let contacts: Vec<(usize, Probe)> = probes.into_iter().enumerate().filter_map(|(i, p)| p.map(|p| (i, p))).collect();
     // Each texel's direct light (traced, or the direct pass's) and what its
@@ -350,16 +349,19 @@ impl<'a> Tracer<'a> {
             !self.occluders.blocks_where(p + side, t + side, |_, other| other.dot(face).abs() < STANDING_COS)
         };
         let j = self.grid.nearest(p, primitive, face, d, reaches)?;
-        if !self.hidden.is_some_and(|h| h[j as usize]) {
+        if !self.is_hidden(j) {
             return Some(j);
         }
         let origin_height = -front.dot(d) * distance;
         self.grid.nearest(p, primitive, face, d, |i| {
             let t = &self.texels.texels[i as usize];
-            !self.hidden.is_some_and(|h| h[i as usize])
-                && (t.position().as_dvec3() - p).dot(front) <= origin_height
-                && reaches(i)
+            !self.is_hidden(i) && (t.position().as_dvec3() - p).dot(front) <= origin_height && reaches(i)
         })
+    }
+
+    /// Whether texel `i` lies hidden under an opaque surface (`overlaps`).
+    fn is_hidden(&self, i: u32) -> bool {
+        self.hidden.is_some_and(|h| h[i as usize])
     }
 
     /// Whether an opaque surface parallel to the plane of normal `front`
