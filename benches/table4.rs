@@ -10,14 +10,11 @@
 //! cargo bench --bench table4                          # everything (see BENCHMARKS.md for how long)
 //! cargo bench --bench table4 -- --quick               # a smoke run: two cells at 256², small reference
 //! cargo bench --bench table4 -- --only grid --sizes 256,512 --lights 96,384 --modes cube
-//! cargo bench --bench table4 -- --only ceiling,scaling
 //! ```
 //!
 //! The environment is `--env`, else `$BAKE_BENCH_ENV`, else the captured
 //! `/work/shared/env/courtyard.exr` where it exists, else `fixtures/sky_sun.exr`.
 
-#[path = "table4/ceiling.rs"]
-mod ceiling;
 #[path = "table4/vertex.rs"]
 mod vertex;
 
@@ -25,7 +22,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use clap::{Parser, ValueEnum};
 
 use bake::config::BakeOptions;
@@ -50,9 +47,6 @@ enum Mode {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 enum Section {
     Grid,
-    Ceiling,
-    /// The direct pass as texels, lights, triangles and shadow maps double.
-    Scaling,
     /// The bounce pass as texels and triangles double.
     Bounce,
     /// The direct light at the vertices (the paper's per-vertex comparison) against the texels.
@@ -74,7 +68,7 @@ struct Args {
     #[arg(long, value_delimiter = ',', default_values = ["cube", "budget"])]
     modes: Vec<Mode>,
     /// Which parts to run.
-    #[arg(long, value_delimiter = ',', default_values = ["grid", "ceiling", "scaling", "bounce", "vertex"])]
+    #[arg(long, value_delimiter = ',', default_values = ["grid", "bounce", "vertex"])]
     only: Vec<Section>,
     /// Equirectangular environment map.
     #[arg(long)]
@@ -88,9 +82,6 @@ struct Args {
     /// Statue frequency (10·f² + 2 vertices per statue).
     #[arg(long, default_value_t = TABLE4_STATUE_FREQUENCY)]
     frequency: u32,
-    /// Ceiling cells as SIZE:LIGHTS (cube lights).
-    #[arg(long, value_delimiter = ',', default_values = ["256:1536", "512:384", "1024:96"])]
-    ceiling: Vec<String>,
     /// Grid bakes without the supersample fix-up (its cost is the difference).
     #[arg(long)]
     no_supersample: bool,
@@ -100,9 +91,6 @@ struct Args {
     /// Budget lights of the per-vertex comparison (at each of `--sizes`).
     #[arg(long, default_value_t = 384)]
     vertex_lights: u32,
-    /// Shadow-map size of the grid bakes (`bake --shadow-map-size`; default: automatic).
-    #[arg(long)]
-    shadow_map_size: Option<u32>,
     /// Shooter patches of the grid bakes' bounce pass (`bake --patches`).
     #[arg(long, default_value_t = bake::solve::BounceOptions::default().patches)]
     patches: u32,
@@ -164,7 +152,7 @@ struct Cell {
     peak_rss: Option<u64>,
     gpu_peak: Option<u64>,
     evaluations: u64,
-    shadow_map: u32,
+    rays: u64,
     batches: usize,
     patches: usize,
     shots: u64,
@@ -270,8 +258,7 @@ fn main() -> Result<()> {
         args.lights = vec![96];
         args.reference_texels = args.reference_texels.min(64);
         args.reference_samples = args.reference_samples.min(1024);
-        args.ceiling = vec!["256:96".into()];
-        args.only.retain(|s| !matches!(s, Section::Scaling | Section::Bounce));
+        args.only.retain(|s| !matches!(s, Section::Bounce));
     }
     let started = Instant::now();
     let gpu = Gpu::new(None)?;
@@ -298,12 +285,6 @@ fn main() -> Result<()> {
     );
     if args.only.contains(&Section::Grid) {
         grid(&gpu, &args, &statues, &map)?;
-    }
-    if args.only.contains(&Section::Ceiling) {
-        ceiling_table(&gpu, &args, &statues, &map)?;
-    }
-    if args.only.contains(&Section::Scaling) {
-        scaling(&gpu, &map)?;
     }
     if args.only.contains(&Section::Bounce) {
         bounce_scaling(&gpu)?;
@@ -334,7 +315,6 @@ fn grid(gpu: &Gpu, args: &Args, statues: &Statues, map: &Arc<EnvironmentMap>) ->
         options.unwrap.max_atlas_size = size;
         options.solve.supersample = !args.no_supersample;
         options.solve.contact = !args.no_contact_trace;
-        options.solve.shadow_map_size = args.shadow_map_size;
         options.solve.bounce.patches = args.patches;
         options.solve.bounce.shooters_per_batch = args.shooters_per_batch;
         // The reference at texels of this atlas size (every cell of the size bakes the same texels).
@@ -406,7 +386,7 @@ fn grid(gpu: &Gpu, args: &Args, statues: &Statues, map: &Arc<EnvironmentMap>) ->
                     peak_rss,
                     gpu_peak,
                     evaluations: direct.map_or(0, |d| d.evaluations),
-                    shadow_map: direct.map_or(0, |d| d.shadow_map_size),
+                    rays: direct.map_or(0, |d| d.rays),
                     batches: direct.map_or(0, |d| d.batches),
                     patches: bounce.map_or(0, |b| b.patches),
                     shots: bounce.map_or(0, |b| b.shots),
@@ -493,18 +473,18 @@ fn grid(gpu: &Gpu, args: &Args, statues: &Statues, map: &Arc<EnvironmentMap>) ->
          and every texel's gather from it) per second, and texel·shooter pairs per second.\n"
     );
     println!(
-        "| lights | mode | atlas | texels | shadow map | batches | pairs (M) | direct (s) | M pairs/s | patches | shots \
+        "| lights | mode | atlas | texels | rays (M) | batches | pairs (M) | direct (s) | M pairs/s | patches | shots \
          | bounce (s) | shots/s | M texel·shooters/s |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for c in &cells {
         println!(
-            "| {} | {} | {}² | {} | {}² | {} | {:.0} | {:.2} | {:.1} | {} | {} | {:.2} | {:.1} | {:.1} |",
+            "| {} | {} | {}² | {} | {:.1} | {} | {:.0} | {:.2} | {:.1} | {} | {} | {:.2} | {:.1} | {:.1} |",
             c.lights,
             mode_name(c.mode),
             c.size,
             c.texels,
-            c.shadow_map,
+            c.rays as f64 / 1e6,
             c.batches,
             c.evaluations as f64 / 1e6,
             c.direct,
@@ -562,14 +542,11 @@ fn grid(gpu: &Gpu, args: &Args, statues: &Statues, map: &Arc<EnvironmentMap>) ->
     Ok(())
 }
 
-/// Filter widths (depth loads per pair) the bare gather is also timed with.
-const TAPS: [u32; 3] = [9, 25, 73];
-
 fn vertex_table(gpu: &Gpu, args: &Args, statues: &Statues, map: &Arc<EnvironmentMap>) -> Result<()> {
     println!("\n## Per-vertex baseline: the direct light at the vertices\n");
     println!(
         "The paper's Fig. 14 compares its texels with incremental radiosity at the vertices. Here the same direct \
-         pass and shadow maps run at the {} lights' texels (with the supersample fix-up, as a bake) and at the \
+         pass and shadow rays run at the {} lights' texels (with the supersample fix-up, as a bake) and at the \
          meshes' vertices, interpolated across each triangle (benches/table4/vertex.rs). Errors: relative RMSE \
          against the CPU reference of the direct light alone (no reflections) at {} texel centres × {} paths. \
          The bounce pass has no per-vertex form (it shoots between atlas patches and texels), so this compares \
@@ -590,7 +567,6 @@ fn vertex_table(gpu: &Gpu, args: &Args, statues: &Statues, map: &Arc<Environment
     for &size in &args.sizes {
         let mut options = BakeOptions::default();
         options.unwrap.max_atlas_size = size;
-        options.solve.shadow_map_size = args.shadow_map_size;
         let c = vertex::compare(&setup, &scene, &options)?;
         eprintln!(
             "vertex {size}²: texels {:.2} s {:.2} %, vertices {:.2} s {:.2} %",
@@ -611,106 +587,6 @@ fn vertex_table(gpu: &Gpu, args: &Args, statues: &Statues, map: &Arc<Environment
         );
     }
     Ok(())
-}
-
-fn ceiling_table(gpu: &Gpu, args: &Args, statues: &Statues, map: &EnvironmentMap) -> Result<()> {
-    println!("\n## Direct pass against the bare-kernel ceiling\n");
-    println!(
-        "The real direct pass (depth maps + soft-shadow gather, `solve::direct::run`) and a bare kernel of the same \
-         shape on the same texels, lights, shadow-map size and batch size (benches/table4/ceiling.rs: depth maps of \
-         positions only; per texel and light one dot product, the projection, one depth load and a compare). Rates \
-         in M texel·light pairs/s. \"empty\" is the gather with no lights in a batch: the fixed cost of a batch. \
-         \"gather, n loads\" is the bare gather alone with a filter of n depth loads per pair (the real pass's soft \
-         shadows take a 9-tap blocker search, then 16 taps × 4 loads where a blocker was found, and a tap that \
-         lands on the receiver's own plane loads 4 neighbours more).\n"
-    );
-    println!(
-        "| atlas | texels | lights | shadow map | batch | real (s) | real rate | bare depth (s) | bare gather (s) \
-         | bare both (s) | bare rate | real / bare | empty batches (s) | {} | cores |",
-        TAPS.map(|n| format!("gather, {n} loads (s)")).join(" | ")
-    );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|{}---|", "---|".repeat(TAPS.len()));
-    for spec in &args.ceiling {
-        let (size, count) = spec.split_once(':').context("--ceiling takes SIZE:LIGHTS")?;
-        let (size, count): (u32, u32) = (size.parse()?, count.parse()?);
-        let mut options = BakeOptions::default();
-        options.unwrap.max_atlas_size = size;
-        let scene = statues.scene()?;
-        let atlas = unwrap(&scene, &options)?;
-        let texels = bake::texelize::run(gpu, &scene, &atlas)?;
-        let tpu = atlas.texels_per_unit;
-        let (wall, cpu) = (Instant::now(), cpu_seconds());
-        let lights = LightSet::extract(map, light_mode(Mode::Cube, count)?, 0.0, 1.0);
-        let direct = bake::solve::direct::run(gpu, &scene, &texels, &[], &lights, tpu, &options.solve, &mut |_, _| {})?;
-        let stats = direct.stats;
-        let batch = bake::solve::direct::batch_size(gpu, stats.shadow_map_size, options.solve.batch_size);
-        let bare = ceiling::measure(gpu, &scene, &texels.texels, &lights, stats.shadow_map_size, batch, &TAPS)?;
-        if bare.batches != stats.batches {
-            bail!("the bare kernel ran {} batches where the direct pass ran {}", bare.batches, stats.batches);
-        }
-        let pairs = stats.evaluations as f64;
-        println!(
-            "| {size}² | {} | {} | {}² | {batch} | {:.2} | {:.1} | {:.2} | {:.2} | {:.2} | {:.1} | {:.1} | {:.2} | {} | {:.2} |",
-            texels.texels.len(),
-            lights.lights.len(),
-            stats.shadow_map_size,
-            stats.seconds,
-            pairs / stats.seconds / 1e6,
-            bare.render,
-            bare.gather,
-            bare.both,
-            pairs / bare.both / 1e6,
-            stats.seconds / bare.both,
-            bare.empty,
-            bare.filtered.iter().map(|(_, s)| format!("{s:.2}")).collect::<Vec<_>>().join(" | "),
-            (cpu_seconds() - cpu) / wall.elapsed().as_secs_f64()
-        );
-        eprintln!("ceiling {size}²×{count}: real {:.2} s, bare {:.2} s", stats.seconds, bare.both);
-    }
-    Ok(())
-}
-
-/// One direct pass (best of two where one takes under 20 s): (texels, lights, triangles, shadow map,
-/// seconds, cores).
-fn direct_once(
-    gpu: &Gpu,
-    statues: &Statues,
-    map: &EnvironmentMap,
-    size: u32,
-    mode: LightMode,
-    shadow_map: Option<u32>,
-) -> Result<Row> {
-    let mut options = BakeOptions::default();
-    options.unwrap.max_atlas_size = size;
-    options.solve.shadow_map_size = shadow_map;
-    let scene = statues.scene()?;
-    let atlas = unwrap(&scene, &options)?;
-    let texels = bake::texelize::run(gpu, &scene, &atlas)?;
-    let lights = LightSet::extract(map, mode, 0.0, 1.0);
-    let (mut best, mut cores, mut map_size) = (f64::INFINITY, 0.0, 0);
-    for _ in 0..2 {
-        let (wall, cpu) = (Instant::now(), cpu_seconds());
-        let solve = &options.solve;
-        let direct =
-            bake::solve::direct::run(gpu, &scene, &texels, &[], &lights, atlas.texels_per_unit, solve, &mut |_, _| {})?;
-        if direct.stats.seconds < best {
-            best = direct.stats.seconds;
-            cores = (cpu_seconds() - cpu) / wall.elapsed().as_secs_f64();
-        }
-        map_size = direct.stats.shadow_map_size;
-        if best >= 20.0 {
-            break;
-        }
-    }
-    Ok(Row {
-        label: String::new(),
-        texels: texels.texels.len(),
-        lights: lights.lights.len(),
-        triangles: scene.triangle_count(),
-        map_size,
-        seconds: best,
-        cores,
-    })
 }
 
 /// The bounce pass alone for a fixed number of shots from a uniform start (every texel's L_lm = 1),
@@ -770,102 +646,5 @@ fn bounce_scaling(gpu: &Gpu) -> Result<()> {
         eprintln!("bounce scaling {size}² f{frequency}: {:.2} s", stats.seconds);
     }
     println!();
-    Ok(())
-}
-
-/// One run of the scaling tables.
-struct Row {
-    label: String,
-    texels: usize,
-    lights: usize,
-    triangles: usize,
-    map_size: u32,
-    seconds: f64,
-    cores: f64,
-}
-
-fn scaling(gpu: &Gpu, map: &EnvironmentMap) -> Result<()> {
-    println!("\n## Scaling of the direct pass\n");
-    println!(
-        "Direct pass alone (`solve::direct::run`; best of two where a run takes under 20 s) on the three statues, \
-         each axis doubled with the others fixed (atlas 256², cube:8 = 384 lights, statue frequency 17, automatic \
-         shadow-map size unless the axis says otherwise). \"work\" is texels × lights relative to the first row, \
-         \"time\" the wall time relative to it and \"CPU\" the CPU time (all threads) relative to it; ns/pair is \
-         the wall time per texel·light pair. The machine is shared, so a row is flagged when its CPU time grows \
-         more than 1.3× faster than its work (wall time also moves with the cores the run got). Along the triangle axis \"work\" is the triangle count, along the \
-         shadow-map axis its pixel count (they do not change the pairs).\n"
-    );
-    let base = Statues::new(TABLE4_STATUE_FREQUENCY);
-    let run = |label: String, statues: &Statues, size, mode, shadow| -> Result<Row> {
-        let row = direct_once(gpu, statues, map, size, mode, shadow)?;
-        eprintln!("scaling {label}: {:.2} s", row.seconds);
-        Ok(Row { label, ..row })
-    };
-    let cube8 = LightMode::Cube { face_size: 8 };
-    let mut tables: Vec<(&str, Vec<Row>)> = Vec::new();
-    let mut rows = Vec::new();
-    for size in [181, 256, 362, 512] {
-        rows.push(run(format!("atlas {size}²"), &base, size, cube8, None)?);
-    }
-    tables.push(("texels (automatic shadow-map size)", rows));
-    let mut rows = Vec::new();
-    for size in [181, 256, 362, 512] {
-        rows.push(run(format!("atlas {size}²"), &base, size, cube8, Some(1024))?);
-    }
-    tables.push(("texels (shadow maps fixed at 1024²)", rows));
-    let mut rows = Vec::new();
-    for count in [96, 192, 384, 768] {
-        rows.push(run(format!("budget {count}"), &base, 256, LightMode::Budget { count }, None)?);
-    }
-    tables.push(("lights (budget mode)", rows));
-    let mut rows = Vec::new();
-    for face_size in [4, 8, 16] {
-        rows.push(run(format!("cube:{face_size}"), &base, 256, LightMode::Cube { face_size }, None)?);
-    }
-    tables.push(("lights (cube mode, ×4 steps)", rows));
-    let mut rows = Vec::new();
-    for frequency in [12, 17, 24, 34] {
-        let statues = Statues::new(frequency);
-        rows.push(run(format!("statue frequency {frequency}"), &statues, 256, cube8, None)?);
-    }
-    tables.push(("triangles", rows));
-    let mut rows = Vec::new();
-    for shadow in [512, 724, 1024, 1448] {
-        rows.push(run(format!("shadow maps {shadow}²"), &base, 256, cube8, Some(shadow))?);
-    }
-    tables.push(("shadow-map size", rows));
-
-    for (axis, rows) in &tables {
-        println!("### {axis}\n");
-        println!(
-            "| run | texels | lights | triangles | shadow map | direct (s) | ns/pair | cores | work | time | CPU | |"
-        );
-        println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
-        let first = &rows[0];
-        for r in rows {
-            let work = if axis.starts_with("triangles") {
-                r.triangles as f64 / first.triangles as f64
-            } else if axis.starts_with("shadow") {
-                (r.map_size as f64 / first.map_size as f64).powi(2)
-            } else {
-                (r.texels * r.lights) as f64 / (first.texels * first.lights) as f64
-            };
-            let time = r.seconds / first.seconds;
-            let cpu = r.seconds * r.cores / (first.seconds * first.cores);
-            let flag = if cpu > 1.3 * work { "super-linear" } else { "" };
-            println!(
-                "| {} | {} | {} | {} | {}² | {:.2} | {:.1} | {:.2} | {work:.2} | {time:.2} | {cpu:.2} | {flag} |",
-                r.label,
-                r.texels,
-                r.lights,
-                r.triangles,
-                r.map_size,
-                r.seconds,
-                r.seconds * 1e9 / (r.texels * r.lights) as f64,
-                r.cores
-            );
-        }
-        println!();
-    }
     Ok(())
 }

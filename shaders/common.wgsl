@@ -67,50 +67,6 @@ fn basis(n: vec3f) -> mat3x3f {
     return mat3x3f(t, bt, n);
 }
 
-// Orthographic light space for a distant light from direction `towards_light`
-// over the scene's bounding sphere (centre, radius): x, y in [-1, 1] across
-// the sphere, z in [0, 1] from the near plane (light side) to the far plane.
-fn light_space(p: vec3f, towards_light: vec3f, centre: vec3f, radius: f32) -> vec3f {
-    let m = basis(towards_light);
-    let d = p - centre;
-    return vec3f(dot(d, m[0]) / radius, dot(d, m[1]) / radius, 0.5 - 0.5 * dot(d, towards_light) / radius);
-}
-
-// --- solve: direct environment light ---
-
-// Mirrors `direct::DirectParams`.
-struct DirectParams {
-    centre: vec3f,         // bounding-sphere centre of the scene, world
-    radius: f32,           // its radius (with margin), metres
-    map_size: f32,         // shadow-map width = height, texels
-    light_count: u32,      // lights in this batch
-    texel_count: u32,
-    row_stride: u32,       // invocations per dispatch row
-    tiles_per_row: u32,    // shadow maps per row of the batch's depth atlas
-    normal_offset: f32,    // metres
-    constant_bias: f32,    // depth tolerance, metres
-    max_slope: f32,        // cap on the receiver plane's tan(θ)
-    plane_tolerance: f32,  // how close a stored depth must be to the receiver's plane to be that plane, depth units
-    _pad1: u32,
-    _pad2: u32,
-    _pad3: u32,
-}
-
-// A distant light: unit direction towards it with the tangent of its angular
-// radius in w (a cone of its solid angle), and L·Ω (rgb) with Ω in w.
-struct DirectLight {
-    direction: vec4f,
-    power: vec4f,
-    // x: the depth in the light's shadow map of the scene's bounding-box
-    // corner nearest the light: no surface lies in front of it.
-    nearest: vec4f,
-}
-
-const MAX_BATCH: u32 = 256u;
-
-struct LightBatch {
-    items: array<DirectLight, MAX_BATCH>,
-}
 
 // --- solve: progressive refinement of bounced and emitted light ---
 

@@ -88,10 +88,6 @@ pub struct Args {
     #[arg(long)]
     pub clamp_nonfinite: bool,
 
-    /// Shadow-map width and height in texels [default: from the scene's size and texel density]
-    #[arg(long, value_name = "N")]
-    pub shadow_map_size: Option<u32>,
-
     /// Keep each texel's direct light at its centre even where a shadow edge crosses it
     /// (by default such texels average sub-samples of their footprint)
     #[arg(long)]
@@ -237,11 +233,6 @@ impl Args {
         if !(self.env_intensity.is_finite() && self.env_intensity >= 0.0) {
             bail!("--env-intensity must be a finite number ≥ 0, not {}", self.env_intensity);
         }
-        if let Some(size) = self.shadow_map_size
-            && !(16..=16384).contains(&size)
-        {
-            bail!("--shadow-map-size must be between 16 and 16384, not {size}");
-        }
         if !(self.tolerance.is_finite() && self.tolerance >= 0.0 && self.tolerance < 1.0) {
             bail!("--tolerance must be a fraction in [0, 1), not {}", self.tolerance);
         }
@@ -292,7 +283,6 @@ impl Args {
                 },
                 keep_uv1: self.keep_uv1,
                 solve: SolveOptions {
-                    shadow_map_size: self.shadow_map_size,
                     supersample: !self.no_supersample,
                     contact: !self.no_contact_trace,
                     punctual: !self.no_punctual_lights,
@@ -374,8 +364,6 @@ mod tests {
             "--env-intensity",
             "2",
             "--clamp-nonfinite",
-            "--shadow-map-size",
-            "256",
             "--exposure",
             "-1.5",
             "--tolerance",
@@ -407,7 +395,6 @@ mod tests {
         assert_eq!(config.environment_options.rotation_degrees, -90.0);
         assert_eq!(config.environment_options.intensity, 2.0);
         assert!(config.environment_options.clamp_nonfinite);
-        assert_eq!(config.bake.solve.shadow_map_size, Some(256));
         assert_eq!(config.bake.export.exposure, -1.5);
         assert_eq!(config.bake.solve.bounce.tolerance, 0.05);
         assert_eq!(config.bake.solve.bounce.max_shots, Some(100));
@@ -458,7 +445,6 @@ mod tests {
             &["a.glb", "--max-atlas-size", "8"],
             &["a.glb", "--padding", "100"],
             &["a.glb", "--env-intensity", "-1"],
-            &["a.glb", "--shadow-map-size", "4"],
             &["a.glb", "--tolerance", "1.5"],
             &["a.glb", "--max-time", "-1"],
             &["a.glb", "--patches", "0"],

@@ -26,6 +26,7 @@ pub mod report;
 pub mod scene;
 pub mod solve;
 pub mod texelize;
+pub(crate) mod trace;
 pub mod unwrap;
 
 use std::path::Path;
@@ -176,12 +177,7 @@ pub fn bake_scene(
         })?;
         let mut parts = Vec::new();
         if let Some(d) = &solution.direct {
-            parts.push(format!(
-                "{} lights × {} texels, shadow maps {}²",
-                d.lights,
-                texels.texels.len(),
-                d.shadow_map_size
-            ));
+            parts.push(format!("{} lights × {} texels, {} rays", d.lights, texels.texels.len(), d.rays));
         }
         if let Some(p) = &solution.punctual {
             parts.push(format!("{} punctual lights along {} shadow rays in {:.1} s", p.lights, p.rays, p.seconds));

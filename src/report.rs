@@ -27,8 +27,10 @@ use crate::texelize::TexelSet;
 
 /// Version of the report's layout; bumped on any change to it. Version 4
 /// added a primitive's `instance` and the scene's `contact`, version 5 the
-/// scene's `punctual`; `bake check` still reads version 3.
-pub const SCHEMA_VERSION: u32 = 5;
+/// scene's `punctual`, version 6 the direct pass's `rays` in place of its
+/// shadow-map size (and the option with it); `bake check` still reads
+/// version 3.
+pub const SCHEMA_VERSION: u32 = 6;
 
 /// The oldest version `bake check` reads: every later change only added
 /// optional fields.
@@ -105,7 +107,6 @@ pub struct OptionsReport {
     pub env_rotation_degrees: f32,
     pub env_intensity: f32,
     pub clamp_nonfinite: bool,
-    pub shadow_map_size: Option<u32>,
     pub light_batch_size: u32,
     pub tolerance: f64,
     pub max_shots: Option<u64>,
@@ -136,7 +137,6 @@ impl OptionsReport {
             env_rotation_degrees: env.rotation_degrees,
             env_intensity: env.intensity,
             clamp_nonfinite: env.clamp_nonfinite,
-            shadow_map_size: bake.solve.shadow_map_size,
             light_batch_size: bake.solve.batch_size,
             tolerance: bake.solve.bounce.tolerance,
             max_shots: bake.solve.bounce.max_shots,

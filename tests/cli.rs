@@ -148,7 +148,6 @@ fn help_explains_every_option() {
         "--env-rotation",
         "--env-intensity",
         "--clamp-nonfinite",
-        "--shadow-map-size",
         "--exposure",
         "--adapter",
         "--quiet",

@@ -28,12 +28,17 @@ struct Run {
     stderr: String,
 }
 
-/// Runs `bake ARGS -o OUT -q` (small atlas and light budget) in `dir`, with
-/// the device lost at `lose_at` if given; fails the test if it hangs.
+/// Runs `bake ARGS -o OUT -q` (a small atlas and light budget unless ARGS
+/// set them) in `dir`, with the device lost at `lose_at` if given; fails the
+/// test if it hangs.
 fn bake(dir: &Path, args: &[&str], out: &Path, lose_at: Option<&str>) -> Run {
     let mut command = Command::new(env!("CARGO_BIN_EXE_bake"));
-    command.current_dir(dir).args(args).arg("-o").arg(out);
-    command.args(["-q", "--max-atlas-size", "64", "--lights", "32", "--max-shots", "256"]);
+    command.current_dir(dir).args(args).arg("-o").arg(out).arg("-q");
+    for default in [["--max-atlas-size", "64"], ["--lights", "32"], ["--max-shots", "256"]] {
+        if !args.contains(&default[0]) {
+            command.args(default);
+        }
+    }
     command.env_remove(LOSE_DEVICE_HOOK);
     if let Some(stage) = lose_at {
         command.env(LOSE_DEVICE_HOOK, stage);
@@ -141,13 +146,14 @@ fn a_device_lost_mid_bake_leaves_earlier_outputs_as_they_were() {
 fn a_gpu_that_does_not_answer_within_the_timeout_ends_the_bake_with_one_line_and_no_output() {
     // A hung driver that never reports a lost device would block a build
     // forever; `--gpu-timeout` bounds every wait. One microsecond is shorter
-    // than any GPU work, so the first wait (in texelize, or the solve if the
-    // driver were that fast) gives up, as a wait on a hung GPU would.
+    // than the GPU work of a 1024² atlas, so the first wait (in texelize, or
+    // the solve if the driver were that fast) gives up, as a wait on a hung
+    // GPU would. (A 64² atlas's work can finish before the first wait.)
     let dir = tempfile::tempdir().unwrap();
     let sky = fixture("sky_sun.exr");
     std::fs::copy(fixture("sphere_on_ground.glb"), dir.path().join("scene.glb")).unwrap();
     let before = contents(dir.path());
-    let args = ["scene.glb", "--env", sky.to_str().unwrap(), "--gpu-timeout", "0.000001"];
+    let args = ["scene.glb", "--env", sky.to_str().unwrap(), "--gpu-timeout", "0.000001", "--max-atlas-size", "1024"];
     let run = bake(dir.path(), &args, Path::new("out"), None);
     let stage = if run.stderr.contains("texelize: ") { "texelize" } else { "solve" };
     assert_lost(&run, "scene.glb", stage);

@@ -1,6 +1,6 @@
 //! The paper's per-vertex comparison (its Fig. 14: incremental radiosity at
 //! the vertices against its texels), for the direct light: the same direct
-//! pass and shadow maps evaluated at the meshes' vertices and interpolated
+//! pass and shadow rays evaluated at the meshes' vertices and interpolated
 //! across each triangle (Gouraud), against the pass at the texels. Both are
 //! compared with the CPU reference of the direct light alone at the same
 //! texel centres. The bounce pass has no per-vertex form: it shoots from
@@ -49,19 +49,9 @@ pub fn compare(setup: &Setup, scene: &Scene, options: &BakeOptions) -> Result<Co
     let gpu = setup.gpu;
 
     let (vertices, first_vertex) = vertex_points(scene);
-    // The same shadow maps (their size follows the atlas's texel density).
     let at_vertices = || {
         let start = Instant::now();
-        let direct = bake::solve::direct::run(
-            gpu,
-            scene,
-            &vertices,
-            &[],
-            setup.lights,
-            atlas.texels_per_unit,
-            &options.solve,
-            &mut |_, _| {},
-        )?;
+        let direct = bake::solve::direct::run(gpu, scene, &vertices, setup.lights, &options.solve, &mut |_, _| {})?;
         anyhow::Ok((direct.irradiance, start.elapsed().as_secs_f64()))
     };
     // Before the texels too, so that neither pays for the pipelines' first use.

@@ -317,6 +317,17 @@ impl Gpu {
         entry: &str,
         layouts: &[&wgpu::BindGroupLayout],
     ) -> wgpu::ComputePipeline {
+        self.compute_pipeline_with(shader, entry, layouts, &[])
+    }
+
+    /// As `compute_pipeline`, with values for the shader's `override` constants.
+    pub fn compute_pipeline_with(
+        &self,
+        shader: Shader,
+        entry: &str,
+        layouts: &[&wgpu::BindGroupLayout],
+        constants: &[(&str, f64)],
+    ) -> wgpu::ComputePipeline {
         let module = self.shader(shader);
         let layouts: Vec<Option<&wgpu::BindGroupLayout>> = layouts.iter().map(|l| Some(*l)).collect();
         let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -329,7 +340,7 @@ impl Gpu {
             layout: Some(&layout),
             module: &module,
             entry_point: Some(entry),
-            compilation_options: Default::default(),
+            compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
             cache: None,
         })
     }

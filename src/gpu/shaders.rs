@@ -4,6 +4,10 @@
 
 /// Shared WGSL: constants, the light-space basis, packing helpers.
 pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
+/// Ray casts against the scene (`trace::GpuScene`).
+const TRACE: &str = include_str!("../../shaders/include/trace.wgsl");
+/// What can block a point's light (the occluder and direct passes).
+const OCCLUDERS: &str = include_str!("../../shaders/include/occluders.wgsl");
 
 /// Every pass's shader, named `<stage>_<pass>` after its file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -12,9 +16,9 @@ pub enum Shader {
     TexelizeRaster,
     /// Turns (triangle, barycentrics) per texel into world position, normals, albedo, emission.
     TexelizeAttributes,
-    /// Orthographic depth maps of the scene along each light direction.
-    SolveDepth,
-    /// Direct environment light: every texel gathers the lights of one batch.
+    /// What can block each point's light: polygons and cones above its face.
+    SolveOccluders,
+    /// Direct environment light: every point gathers the lights of one batch.
     SolveDirect,
     /// Per-patch sums of unshot power.
     SolvePatchPower,
@@ -32,7 +36,7 @@ impl Shader {
     pub const ALL: &'static [Shader] = &[
         Shader::TexelizeRaster,
         Shader::TexelizeAttributes,
-        Shader::SolveDepth,
+        Shader::SolveOccluders,
         Shader::SolveDirect,
         Shader::SolvePatchPower,
         Shader::SolveSelect,
@@ -46,7 +50,7 @@ impl Shader {
         match self {
             Shader::TexelizeRaster => "texelize_raster",
             Shader::TexelizeAttributes => "texelize_attributes",
-            Shader::SolveDepth => "solve_depth",
+            Shader::SolveOccluders => "solve_occluders",
             Shader::SolveDirect => "solve_direct",
             Shader::SolvePatchPower => "solve_patch_power",
             Shader::SolveSelect => "solve_select",
@@ -60,7 +64,7 @@ impl Shader {
         match self {
             Shader::TexelizeRaster => include_str!("../../shaders/texelize_raster.wgsl"),
             Shader::TexelizeAttributes => include_str!("../../shaders/texelize_attributes.wgsl"),
-            Shader::SolveDepth => include_str!("../../shaders/solve_depth.wgsl"),
+            Shader::SolveOccluders => include_str!("../../shaders/solve_occluders.wgsl"),
             Shader::SolveDirect => include_str!("../../shaders/solve_direct.wgsl"),
             Shader::SolvePatchPower => include_str!("../../shaders/solve_patch_power.wgsl"),
             Shader::SolveSelect => include_str!("../../shaders/solve_select.wgsl"),
@@ -70,8 +74,23 @@ impl Shader {
         }
     }
 
-    /// The complete WGSL source: common code, then the pass.
+    /// The shared pieces the pass uses, after common.wgsl.
+    fn includes(self) -> &'static [&'static str] {
+        match self {
+            Shader::SolveOccluders | Shader::SolveDirect => &[TRACE, OCCLUDERS],
+            _ => &[],
+        }
+    }
+
+    /// The complete WGSL source: common code, the pass's includes, then the pass.
     pub fn source(self) -> String {
-        format!("{COMMON}\n{}", self.body())
+        let mut source = String::from(COMMON);
+        for include in self.includes() {
+            source.push('\n');
+            source.push_str(include);
+        }
+        source.push('\n');
+        source.push_str(self.body());
+        source
     }
 }

@@ -1,8 +1,7 @@
 //! Triangles in f64 and a bounding volume hierarchy over them.
 //!
-//! A compact binned-SAH BVH (Wald, "On fast Construction of SAH-based
-//! Bounding Volume Hierarchies", 2007) built sequentially, so the tree (and
-//! with it every traversal) is the same on every run and thread count.
+//! The tree is `trace::bvh`'s (binned SAH, built the same on every run, so
+//! every traversal is too).
 //! Traversal is front-to-back with a shrinking interval for closest hits and
 //! stops at the first hit for occlusion. A caller may reject hits (alpha
 //! cut-outs) with a test that runs before a hit shortens the ray. Box tests use the conservative
@@ -11,6 +10,8 @@
 //! that rays cannot slip through the shared edge of two triangles.
 
 use glam::DVec3;
+
+use crate::trace::bvh::{Node, Tree};
 
 /// A triangle ready for intersection: `v0 + u·e1 + v·e2`.
 #[derive(Clone, Debug)]
@@ -78,16 +79,6 @@ pub(crate) struct Hit {
     pub v: f64,
 }
 
-#[derive(Clone, Copy, Debug)]
-struct Node {
-    lo: DVec3,
-    hi: DVec3,
-    /// Leaf: first triangle; interior: index of the left child (right = left + 1).
-    start: u32,
-    /// Number of triangles; 0 for an interior node.
-    count: u32,
-}
-
 /// The hierarchy and its triangles (reordered to match the leaves).
 pub(crate) struct Bvh {
     pub triangles: Vec<Triangle>,
@@ -100,40 +91,15 @@ const BARY_EPS: f64 = 1e-10;
 const PARALLEL_EPS: f64 = 1e-15;
 /// Ize's conservative factor: 1 + 2γ₃ with γ₃ = 3u/(1 − 3u).
 const FAR_SCALE: f64 = 1.0 + 2.0 * (3.0 * f64::EPSILON * 0.5) / (1.0 - 3.0 * f64::EPSILON * 0.5);
-const MAX_LEAF: usize = 4;
-const BINS: usize = 16;
 const STACK: usize = 96;
-
-fn area(lo: DVec3, hi: DVec3) -> f64 {
-    let d = (hi - lo).max(DVec3::ZERO);
-    d.x * d.y + d.y * d.z + d.z * d.x
-}
-
-struct Item {
-    lo: DVec3,
-    hi: DVec3,
-    centroid: DVec3,
-    index: u32,
-}
 
 impl Bvh {
     /// Builds the hierarchy (deterministically) over `triangles`.
     pub(crate) fn new(triangles: Vec<Triangle>) -> Bvh {
-        let mut items: Vec<Item> = triangles
-            .iter()
-            .enumerate()
-            .map(|(i, t)| {
-                let (lo, hi) = t.bounds();
-                Item { lo, hi, centroid: (lo + hi) * 0.5, index: i as u32 }
-            })
-            .collect();
-        let mut nodes = Vec::with_capacity(2 * items.len().max(1));
-        nodes.push(Node { lo: DVec3::ZERO, hi: DVec3::ZERO, start: 0, count: 0 });
-        if !items.is_empty() {
-            build(&mut nodes, 0, &mut items, 0);
-        }
+        let boxes: Vec<(DVec3, DVec3)> = triangles.iter().map(Triangle::bounds).collect();
+        let Tree { nodes, order } = Tree::build(&boxes, crate::trace::bvh::MAX_LEAF);
         let mut slots: Vec<Option<Triangle>> = triangles.into_iter().map(Some).collect();
-        let triangles = items.iter().map(|it| slots[it.index as usize].take().expect("each triangle once")).collect();
+        let triangles = order.iter().map(|&i| slots[i as usize].take().expect("each triangle once")).collect();
         Bvh { triangles, nodes }
     }
 
@@ -362,100 +328,6 @@ impl Bvh {
         }
         best
     }
-}
-
-/// Builds node `index` over `items` (which start at `offset` in the final order).
-fn build(nodes: &mut Vec<Node>, index: usize, items: &mut [Item], offset: usize) {
-    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-    let (mut clo, mut chi) = (lo, hi);
-    for it in items.iter() {
-        lo = lo.min(it.lo);
-        hi = hi.max(it.hi);
-        clo = clo.min(it.centroid);
-        chi = chi.max(it.centroid);
-    }
-    nodes[index] = Node { lo, hi, start: offset as u32, count: items.len() as u32 };
-    if items.len() <= MAX_LEAF {
-        return;
-    }
-    let extent = chi - clo;
-    let mut best: Option<(f64, usize, usize)> = None; // (cost, axis, bin split)
-    for axis in 0..3 {
-        if extent[axis] <= 0.0 {
-            continue;
-        }
-        let scale = BINS as f64 / extent[axis];
-        let bin_of = |c: f64| (((c - clo[axis]) * scale) as usize).min(BINS - 1);
-        let mut counts = [0usize; BINS];
-        let mut blo = [DVec3::splat(f64::INFINITY); BINS];
-        let mut bhi = [DVec3::splat(f64::NEG_INFINITY); BINS];
-        for it in items.iter() {
-            let b = bin_of(it.centroid[axis]);
-            counts[b] += 1;
-            blo[b] = blo[b].min(it.lo);
-            bhi[b] = bhi[b].max(it.hi);
-        }
-        // Sweep from the right, then from the left.
-        let mut right_area = [0.0; BINS];
-        let mut right_count = [0usize; BINS];
-        let (mut rlo, mut rhi, mut rc) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY), 0);
-        for b in (1..BINS).rev() {
-            rlo = rlo.min(blo[b]);
-            rhi = rhi.max(bhi[b]);
-            rc += counts[b];
-            right_area[b] = area(rlo, rhi);
-            right_count[b] = rc;
-        }
-        let (mut llo, mut lhi, mut lc) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY), 0);
-        for b in 0..BINS - 1 {
-            llo = llo.min(blo[b]);
-            lhi = lhi.max(bhi[b]);
-            lc += counts[b];
-            let rc = right_count[b + 1];
-            if lc == 0 || rc == 0 {
-                continue;
-            }
-            let cost = lc as f64 * area(llo, lhi) + rc as f64 * right_area[b + 1];
-            if best.is_none_or(|(c, _, _)| cost < c) {
-                best = Some((cost, axis, b + 1));
-            }
-        }
-    }
-    let leaf_cost = items.len() as f64 * area(lo, hi);
-    let mid = match best {
-        Some((cost, axis, split)) => {
-            if cost >= leaf_cost && items.len() <= 2 * MAX_LEAF {
-                return;
-            }
-            let scale = BINS as f64 / extent[axis];
-            let bin_of = |c: f64| (((c - clo[axis]) * scale) as usize).min(BINS - 1);
-            partition(items, |it| bin_of(it.centroid[axis]) < split)
-        }
-        None => {
-            // All centroids coincide: split the list in half.
-            items.len() / 2
-        }
-    };
-    let left = nodes.len();
-    let dummy = Node { lo: DVec3::ZERO, hi: DVec3::ZERO, start: 0, count: 0 };
-    nodes.push(dummy);
-    nodes.push(dummy);
-    nodes[index] = Node { lo, hi, start: left as u32, count: 0 };
-    let (a, b) = items.split_at_mut(mid);
-    build(nodes, left, a, offset);
-    build(nodes, left + 1, b, offset + mid);
-}
-
-/// Stable in-place partition; returns the number of items for which `left` holds.
-fn partition(items: &mut [Item], left: impl Fn(&Item) -> bool) -> usize {
-    let mut i = 0;
-    for j in 0..items.len() {
-        if left(&items[j]) {
-            items.swap(i, j);
-            i += 1;
-        }
-    }
-    i
 }
 
 #[cfg(test)]

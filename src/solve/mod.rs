@@ -13,6 +13,7 @@ mod casters;
 mod contact;
 pub mod direct;
 mod hemicube_cull;
+mod occluders;
 mod overlaps;
 pub mod patches;
 pub mod punctual;
@@ -37,10 +38,7 @@ use punctual::{Punctual, PunctualStats};
 /// Options of the solve, with their defaults.
 #[derive(Clone, Debug)]
 pub struct SolveOptions {
-    /// Shadow-map width and height in texels; `None` picks one from the
-    /// scene's size and texel density.
-    pub shadow_map_size: Option<u32>,
-    /// Lights rendered and gathered per GPU batch (at most 256).
+    /// Lights gathered per GPU batch of the direct pass (at most 256).
     pub batch_size: u32,
     /// Gather texels on a sharp change of direct light at sub-samples of
     /// their footprint (`supersample`).
@@ -57,8 +55,7 @@ pub struct SolveOptions {
 impl Default for SolveOptions {
     fn default() -> Self {
         SolveOptions {
-            shadow_map_size: None,
-            batch_size: 64,
+            batch_size: 256,
             supersample: true,
             contact: true,
             punctual: true,
@@ -315,50 +312,40 @@ fn direct_light_with(
     options: &SolveOptions,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<DirectLight> {
-    let mut gather = |points: &TexelSet, samples: &[Texel], lights: &LightSet| {
-        direct::run(gpu, scene, points, samples, lights, texels_per_unit, options, progress)
-    };
-    let punctual_at_texels = punctual.map(|p| p.irradiance(&texels.texels));
-    if !options.supersample {
-        let environment = environment.map(|lights| gather(texels, &[], lights)).transpose()?;
-        return Ok(DirectLight { environment, punctual: punctual_at_texels, supersampled: 0 });
-    }
     let start = std::time::Instant::now();
-    // Under many lights, a preview under merged ones flags the texels and
-    // one full pass gathers them with their sub-samples. Under few, the full
-    // pass flags them and a second one gathers the sub-samples.
-    let preview = environment.and_then(supersample::preview_lights);
-    let first = environment.map(|lights| gather(texels, &[], preview.as_ref().unwrap_or(lights))).transpose()?;
-    let mut flagging = first.as_ref().map_or_else(|| vec![[0.0; 3]; texels.texels.len()], |d| d.irradiance.clone());
-    for (sum, e) in flagging.iter_mut().zip(punctual_at_texels.iter().flatten()) {
-        (0..3).for_each(|c| sum[c] += e[c]);
-    }
-    let plan = supersample::plan(occluders, texels, &flagging);
-    let (mut direct, at_samples) = match (environment, first, &preview, &plan) {
-        (None, _, _, _) | (_, None, _, _) => (None, Vec::new()),
-        (Some(_), Some(first), None, None) => (Some(first), Vec::new()),
-        (Some(lights), Some(mut first), None, Some(plan)) => {
-            let sub = gather(&plan.samples, &[], lights)?;
-            first.stats.evaluations += sub.stats.evaluations;
-            (Some(first), sub.irradiance)
-        }
-        (Some(lights), Some(first), Some(_), _) => {
-            let samples = plan.as_ref().map_or(&[][..], |p| &p.samples.texels);
-            let mut direct = gather(texels, samples, lights)?;
-            direct.stats.evaluations += first.stats.evaluations;
-            let at_samples = std::mem::take(&mut direct.at_samples);
-            (Some(direct), at_samples)
-        }
+    let pass = environment.map(|_| direct::DirectPass::new(gpu, scene)).transpose()?;
+    let gather = |points: &[Texel], lights: &LightSet, progress: &mut dyn FnMut(u64, u64)| {
+        pass.as_ref().expect("a pass where there are lights").gather(points, lights, options.batch_size, progress)
     };
-    if let Some(direct) = &mut direct {
-        direct.stats.seconds = start.elapsed().as_secs_f64();
-    }
+    let mut direct = environment
+        .map(|lights| Ok::<_, anyhow::Error>(gather(&texels.texels, lights, progress)?.into_direct(texels, lights)))
+        .transpose()?;
+    let punctual_at_texels = punctual.map(|p| p.irradiance(&texels.texels));
+    let plan = if options.supersample {
+        // The light of both kinds together flags the texels on a sharp change.
+        let mut flagging =
+            direct.as_ref().map_or_else(|| vec![[0.0; 3]; texels.texels.len()], |d| d.irradiance.clone());
+        for (sum, e) in flagging.iter_mut().zip(punctual_at_texels.iter().flatten()) {
+            (0..3).for_each(|c| sum[c] += e[c]);
+        }
+        supersample::plan(occluders, texels, &flagging)
+    } else {
+        None
+    };
     let Some(plan) = plan else {
+        if let Some(direct) = &mut direct {
+            direct.stats.seconds = start.elapsed().as_secs_f64();
+        }
         return Ok(DirectLight { environment: direct, punctual: punctual_at_texels, supersampled: 0 });
     };
-    if let Some(direct) = &mut direct {
-        supersample::fold(&plan, &at_samples, &mut direct.irradiance);
+    if let (Some(direct), Some(lights)) = (&mut direct, environment) {
+        let at_samples = gather(&plan.samples.texels, lights, &mut |_, _| {})?;
+        direct.stats.evaluations += lights.lights.len() as u64 * plan.samples.texels.len() as u64;
+        direct.stats.rays += at_samples.rays;
+        direct.stats.batches += at_samples.batches;
+        supersample::fold(&plan, &at_samples.irradiance, &mut direct.irradiance);
         direct.stats.power_received = direct::power_received(texels, &direct.irradiance);
+        direct.stats.seconds = start.elapsed().as_secs_f64();
     }
     let punctual = punctual.zip(punctual_at_texels).map(|(punctual, mut irradiance)| {
         let texel_size = 1.0 / texels_per_unit.max(1e-30) as f64;

@@ -15,15 +15,13 @@
 //! its footprint a viewer can see, and light from behind the wall must not
 //! leak in.
 //!
-//! Flagging needs the direct light, and the depth maps are gone once it is
-//! gathered. Under many lights, a preview under a few merged ones
-//! (`preview_lights`) flags the texels instead, so the full set's depth maps
-//! are rendered once, for the texels and their sub-samples together.
+//! The direct pass gathers the texels first, which flags them, then the
+//! sub-samples alone.
 
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use crate::environment::{Light, LightSet, luminance};
+use crate::environment::luminance;
 use crate::reference::Occluders;
 use crate::texelize::{Texel, TexelSet};
 
@@ -43,16 +41,6 @@ const SAME_SURFACE_COS: f32 = 0.9;
 /// widths: above the curvature of a surface bent at most `SAME_SURFACE_COS`
 /// per texel, below anything standing on it.
 const LIFT_TEXELS: f64 = 0.05;
-
-/// Lights of the preview that flags texels under a large light set. With
-/// 64, the preview flags 1.0–1.4× the texels the full set's light does and
-/// misses ones holding 0.1–1.9 % of what the fix-up changes (the statues
-/// under three captured skies, a room under a sun); with 16 or 32, up to 23 %.
-const PREVIEW_LIGHTS: usize = 64;
-/// A preview is made for at least this many lights per preview light: it
-/// then costs at most an eighth of a full pass, and saves rendering every
-/// depth map a second time.
-const LIGHTS_PER_PREVIEW_LIGHT: usize = 8;
 
 /// The sub-samples of the flagged texels, as texels for a direct pass.
 pub struct Plan {
@@ -177,165 +165,5 @@ pub fn fold(plan: &Plan, gathered: &[[f32; 3]], irradiance: &mut [[f32; 3]]) {
         first += run.len();
         let mean = |c: usize| (samples.iter().map(|e| e[c] as f64).sum::<f64>() / samples.len() as f64) as f32;
         irradiance[run[0] as usize] = [mean(0), mean(1), mean(2)];
-    }
-}
-
-/// The lights merged into `PREVIEW_LIGHTS` groups of nearby directions, for
-/// flagging texels; `None` under too few lights for a preview to pay.
-///
-/// Groups are split top-down, the one whose light is most spread (energy ×
-/// angular spread) first, at its energy median along its widest axis: a
-/// bright light stays alone, so its shadow edges stay where they are, and
-/// a dim sky merges into groups whose edges are too faint to flag. A group
-/// keeps its energy; its light covers the members' solid angle, so its
-/// shadows are as soft as theirs together.
-pub fn preview_lights(lights: &LightSet) -> Option<LightSet> {
-    if lights.lights.len() < LIGHTS_PER_PREVIEW_LIGHT * PREVIEW_LIGHTS {
-        return None;
-    }
-    let energy = |l: &Light| luminance(l.radiance).max(0.0) * l.solid_angle as f64;
-    let direction = |l: &Light| DVec3::from(Vec3::from(l.direction));
-    // The energy-weighted mean direction (not unit) and the energy of a group.
-    let centroid = |group: &[Light]| {
-        let total: f64 = group.iter().map(energy).sum();
-        let sum: DVec3 = group.iter().map(|l| direction(l) * energy(l)).sum();
-        (if total > 0.0 { sum / total } else { DVec3::ZERO }, total)
-    };
-    // Σ e |d − m|² / Σ e = 1 − |m|² for unit directions: the group's spread².
-    let spread = |group: &[Light]| {
-        let (mean, total) = centroid(group);
-        if group.len() < 2 { 0.0 } else { total * (1.0 - mean.length_squared()).max(0.0).sqrt() }
-    };
-    let mut groups: Vec<Vec<Light>> = vec![lights.lights.clone()];
-    while groups.len() < PREVIEW_LIGHTS {
-        let (widest, score) = groups
-            .iter()
-            .enumerate()
-            .map(|(i, g)| (i, spread(g)))
-            .max_by(|a, b| a.1.total_cmp(&b.1))
-            .expect("at least one group");
-        if score <= 0.0 {
-            break;
-        }
-        let mut group = groups.swap_remove(widest);
-        let (mean, total) = centroid(&group);
-        let variance =
-            |axis: usize| group.iter().map(|l| energy(l) * (direction(l)[axis] - mean[axis]).powi(2)).sum::<f64>();
-        let axis = (0..3).max_by(|&a, &b| variance(a).total_cmp(&variance(b))).expect("three axes");
-        group.sort_by(|a, b| a.direction[axis].total_cmp(&b.direction[axis]));
-        // The energy median, with at least one light on each side.
-        let mut below = 0.0;
-        let cut = group
-            .iter()
-            .position(|l| {
-                below += energy(l);
-                below >= 0.5 * total
-            })
-            .map_or(1, |i| i + 1)
-            .clamp(1, group.len() - 1);
-        let upper = group.split_off(cut);
-        groups.push(group);
-        groups.push(upper);
-    }
-    let merged = groups
-        .iter()
-        .map(|group| {
-            let (mean, _) = centroid(group);
-            let omega: f64 = group.iter().map(|l| l.solid_angle as f64).sum();
-            let power =
-                [0, 1, 2].map(|c| group.iter().map(|l| l.radiance[c] as f64 * l.solid_angle as f64).sum::<f64>());
-            let direction = if mean.length_squared() > 1e-12 { mean.normalize() } else { direction(&group[0]) };
-            Light {
-                direction: direction.as_vec3().to_array(),
-                solid_angle: omega as f32,
-                radiance: power.map(|p| (p / omega) as f32),
-            }
-        })
-        .collect();
-    Some(LightSet {
-        lights: merged,
-        mode: lights.mode,
-        map_integral: lights.map_integral,
-        captured: lights.captured,
-        dropped: lights.dropped,
-        notes: Vec::new(),
-    })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::environment::LightMode;
-
-    /// A sun ten times as bright as the whole sky, and a sky of equal lights
-    /// spread over the sphere (a Fibonacci lattice).
-    fn sun_and_sky(sky_lights: usize) -> (LightSet, Vec3) {
-        let sun = Vec3::new(0.3, 0.8, -0.52).normalize();
-        let omega = 4.0 * std::f32::consts::PI / sky_lights as f32;
-        let mut lights: Vec<Light> = (0..sky_lights)
-            .map(|k| {
-                let y = 1.0 - 2.0 * (k as f32 + 0.5) / sky_lights as f32;
-                let (r, phi) = ((1.0 - y * y).sqrt(), k as f32 * 2.399_963);
-                Light { direction: [r * phi.cos(), y, r * phi.sin()], solid_angle: omega, radiance: [0.2, 0.3, 0.5] }
-            })
-            .collect();
-        let sky_energy: f64 = lights.iter().map(|l| luminance(l.radiance) * l.solid_angle as f64).sum();
-        let sun_omega = 6.8e-5f32;
-        let sun_radiance = (10.0 * sky_energy / sun_omega as f64 / luminance([1.0, 0.9, 0.8])) as f32;
-        lights.push(Light {
-            direction: sun.to_array(),
-            solid_angle: sun_omega,
-            radiance: [sun_radiance, 0.9 * sun_radiance, 0.8 * sun_radiance],
-        });
-        let set = LightSet {
-            lights,
-            mode: LightMode::Budget { count: sky_lights as u32 + 1 },
-            map_integral: [0.0; 3],
-            captured: [0.0; 3],
-            dropped: 0,
-            notes: Vec::new(),
-        };
-        (set, sun)
-    }
-
-    fn power(lights: &[Light]) -> [f64; 3] {
-        [0, 1, 2].map(|c| lights.iter().map(|l| l.radiance[c] as f64 * l.solid_angle as f64).sum())
-    }
-
-    #[test]
-    fn preview_keeps_the_energy_and_the_suns_direction_in_fewer_lights() {
-        let (lights, sun) = sun_and_sky(2000);
-        let preview = preview_lights(&lights).expect("2001 lights get a preview");
-        assert_eq!(preview.lights.len(), PREVIEW_LIGHTS);
-        let (before, after) = (power(&lights.lights), power(&preview.lights));
-        for c in 0..3 {
-            assert!((after[c] / before[c] - 1.0).abs() < 1e-5, "channel {c}: {} → {}", before[c], after[c]);
-        }
-        // The brightest merged light is the sun, within a tenth of its radius.
-        let brightest = preview
-            .lights
-            .iter()
-            .max_by(|a, b| {
-                (luminance(a.radiance) * a.solid_angle as f64)
-                    .total_cmp(&(luminance(b.radiance) * b.solid_angle as f64))
-            })
-            .unwrap();
-        let off = Vec3::from(brightest.direction).angle_between(sun).to_degrees();
-        assert!(off < 0.05, "the sun's light points {off}° off the sun");
-        // A sky group carries a small share of the sky: none merges more than a sixteenth of it.
-        let sky = luminance([0.2, 0.3, 0.5]) * 4.0 * std::f64::consts::PI;
-        let largest_sky_group = preview
-            .lights
-            .iter()
-            .filter(|l| !std::ptr::eq(*l, brightest))
-            .map(|l| luminance(l.radiance) * l.solid_angle as f64)
-            .fold(0.0, f64::max);
-        assert!(largest_sky_group < sky / 16.0, "a group holds {:.3} of the sky", largest_sky_group / sky);
-    }
-
-    #[test]
-    fn few_lights_get_no_preview() {
-        let (lights, _) = sun_and_sky(LIGHTS_PER_PREVIEW_LIGHT * PREVIEW_LIGHTS - 2);
-        assert!(preview_lights(&lights).is_none());
     }
 }
