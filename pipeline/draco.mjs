@@ -2,7 +2,7 @@
 // Compresses a glTF's meshes with KHR_draco_mesh_compression, or decodes
 // them back to plain data, through glTF-Transform and Google's Draco
 // library (npm draco3dgltf; both pinned in pipeline/package-lock.json and
-// installed by pipeline/setup.sh). tests/draco.rs writes its compressed
+// installed by pipeline/setup.sh). tests/it/draco.rs writes its compressed
 // inputs with `encode` and takes `decode`'s output as the independent
 // decoder that bake's own decoding must agree with.
 //

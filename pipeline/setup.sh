@@ -8,9 +8,9 @@
 #   glTF-Transform with Google's Draco library and Binomial's Basis Universal
 #   encoder (ktx2-encoder), from npm at the versions pinned in
 #   pipeline/package-lock.json, into pipeline/node_modules (ignored by git);
-#   tests/validator.rs runs the validator through pipeline/validate.mjs,
-#   tests/gltfpack.rs runs gltfpack, tests/draco.rs runs pipeline/draco.mjs,
-#   tests/ktx2.rs runs pipeline/ktx2.mjs.
+#   tests/it/validator.rs runs the validator through pipeline/validate.mjs,
+#   tests/it/gltfpack.rs runs gltfpack, tests/it/draco.rs runs pipeline/draco.mjs,
+#   tests/it/ktx2.rs runs pipeline/ktx2.mjs.
 set -eu
 cd "$(dirname "$0")"
 if [ "$(id -u)" -eq 0 ]; then sudo=""; else sudo="sudo"; fi

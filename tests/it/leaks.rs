@@ -2,7 +2,7 @@
 //! under a box resting on it stay dark, and nothing inside a closed room is
 //! lit by the environment outside.
 
-mod common;
+use crate::common;
 
 use bake::environment::{EnvironmentMap, LightMode};
 use bake::fixtures::{MeshData, Placement, SceneBuilder};

@@ -6,7 +6,7 @@
 //! in pipeline/package-lock.json, installed by pipeline/setup.sh); without
 //! them these tests fail, they never skip.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

@@ -2,7 +2,7 @@
 //! (L = Le/(1−ρ)), analytic form factors, colour bleeding, energy bounds,
 //! and the independent CPU path tracer.
 
-mod common;
+use crate::common;
 
 use bake::config::BakeOptions;
 use bake::environment::{EnvironmentMap, LightMode};

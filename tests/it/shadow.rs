@@ -4,7 +4,7 @@
 //! L_lm = L (1 − (R/d)²); far away the ground sees (almost) the whole sky.
 //! The sphere is black so that no light bounces back onto the ground.
 
-mod common;
+use crate::common;
 
 use bake::environment::{EnvironmentMap, Light, LightMode};
 use bake::fixtures::{MeshData, Placement, SceneBuilder};

@@ -6,7 +6,7 @@
 //! pipeline/package-lock.json and installed by pipeline/setup.sh; without
 //! it these tests fail, they never skip.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

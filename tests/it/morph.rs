@@ -4,7 +4,7 @@
 //! shape drawn plain; an animated node is baked in its rest pose with a
 //! notice.
 
-mod common;
+use crate::common;
 
 use bake::environment::{EnvironmentMap, LightMode};
 use bake::fixtures::{MeshData, Placement, SceneBuilder};

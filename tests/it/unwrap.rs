@@ -4,7 +4,7 @@
 //! and triangle/square separating-axis tests rather than its slab rasterizer), so a bug in one
 //! doesn't hide a bug in the other.
 
-#[path = "../examples/unwrap_compare/meshes.rs"]
+#[path = "../../examples/unwrap_compare/meshes.rs"]
 mod meshes;
 
 use bake::unwrap::{Atlas, Backend, MeshInput, UnwrapError, UnwrapOptions, inspect, run, xatlas_ffi};

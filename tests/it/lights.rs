@@ -3,7 +3,7 @@
 //! as the light budget grows, for the paper's cube-map lights and for the
 //! energy-driven budget.
 
-mod common;
+use crate::common;
 
 use std::time::Instant;
 

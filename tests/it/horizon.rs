@@ -2,7 +2,7 @@
 //! nothing else in the scene: an upward plane gets L_lm = L, a vertical one
 //! L/2, a downward one 0 (design notes, "References a test can trust").
 
-mod common;
+use crate::common;
 
 use bake::environment::{EnvironmentMap, LightMode};
 use bake::fixtures::{MeshData, Placement, SceneBuilder};

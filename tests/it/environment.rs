@@ -2,7 +2,6 @@
 //! writers, and light extraction (energy, orientation, rotation, the sun).
 
 // RGB triples and xyz vectors read best with explicit channel indices.
-#![allow(clippy::needless_range_loop)]
 
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};

@@ -6,7 +6,7 @@
 //! scene against the path tracer. Each light's formula is worked out here
 //! from the extension's text, not through `PunctualLight::towards`.
 
-mod common;
+use crate::common;
 
 use std::f64::consts::PI;
 

@@ -7,7 +7,7 @@
 //! package ktx2-encoder, pinned in pipeline/package-lock.json and installed
 //! by pipeline/setup.sh); without them these tests fail, they never skip.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

@@ -3,7 +3,7 @@
 //! lightmap texel averaging its footprint), vertex colours multiplying the
 //! base colour, and alpha cut-outs that let light through.
 
-mod common;
+use crate::common;
 
 use bake::environment::{EnvironmentMap, LightMode};
 use bake::fixtures::{MeshData, Placement, SceneBuilder};
@@ -342,7 +342,7 @@ fn ground_under_a_pane(dress: impl Fn(&mut SceneBuilder, usize)) -> (Vec<f32>, u
 #[test]
 fn clear_glass_and_a_faint_blend_let_the_sky_through_while_frosted_glass_shades() {
     // Left out of the bake, a see-through pane lets the ground see the whole
-    // sky: L_lm = L = 2, as with nothing over it (tests/horizon.rs).
+    // sky: L_lm = L = 2, as with nothing over it (tests/it/horizon.rs).
     // A texture can only lower a blend's alpha, so a textured blend at a
     // factor under 0.5 is as see-through; a specular-glossiness blend's
     // alpha is its diffuse factor's.

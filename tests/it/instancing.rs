@@ -3,7 +3,7 @@
 //! nodes: every instance lit, shadowing the ground and the other instances,
 //! each with its own lightmap region.
 
-mod common;
+use crate::common;
 
 use bake::environment::{EnvironmentMap, LightMode};
 use bake::fixtures::{MeshData, Placement, SceneBuilder};

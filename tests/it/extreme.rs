@@ -5,7 +5,7 @@
 //! sun 10⁵ times the sky keeps its energy. Every bake here goes through
 //! `common::bake`, which checks every texel is finite and non-negative.
 
-mod common;
+use crate::common;
 
 use bake::environment::{EnvironmentMap, Light, LightMode, LightSet};
 use bake::fixtures::{MeshData, Placement, SceneBuilder};

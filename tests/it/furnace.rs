@@ -1,7 +1,7 @@
 //! The white furnace: a convex object under a constant environment of
 //! radiance L sees the whole sky from every point, so L_lm = E/π = L exactly.
 
-mod common;
+use crate::common;
 
 use bake::environment::{EnvironmentMap, LightMode};
 use bake::fixtures::{MeshData, Placement, SceneBuilder};

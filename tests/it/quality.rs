@@ -3,7 +3,7 @@
 //! only the chart's own texels (no black rims, no neighbour's light), and a
 //! lit plane shows no acne.
 
-mod common;
+use crate::common;
 
 use bake::Baked;
 use bake::environment::{EnvironmentMap, LightMode};
