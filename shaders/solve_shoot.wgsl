@@ -228,7 +228,7 @@ fn near_form_factor(texel: Texel, s: Shooter, k: u32) -> f32 {
     for (var c = 0u; c < SUB_CELL_COUNT; c++) {
         f += sub_cell_form_factor(texel, s, k, c);
     }
-    return f;
+    return min(f, 1.0);
 }
 
 // The unshot light a near-field receiver takes from shooter `s` (slot
@@ -245,13 +245,19 @@ fn near_light(texel: Texel, s: Shooter, k: u32, skip: u32) -> vec3f {
     }
     let base = k * SUB_CELL_ROWS * SUB_CELL_COUNT;
     var light = vec3f(0.0);
+    var f = 0.0;
     for (var c = 0u; c < SUB_CELL_COUNT; c++) {
         if (c != skip) {
             let cell = shooter_cells.items[base + c];
-            light += sub_cell_form_factor(texel, s, k, c) * (cell.rgb / max(cell.w, 1e-30));
+            let fc = sub_cell_form_factor(texel, s, k, c);
+            light += fc * (cell.rgb / max(cell.w, 1e-30));
+            f += fc;
         }
     }
-    return light;
+    // The squares of a curved patch seen from just under it (a ring's
+    // underside millimetres over the floor) overlap in the receiver's view;
+    // their form factors' sum past 1 would return more light than left.
+    return light / max(f, 1.0);
 }
 
 // Whether the shooter in slot `k` is curved (solve_patch_power.wgsl

@@ -825,3 +825,33 @@ fn a_slab_just_over_a_sunlit_ground_keeps_its_underside_dark() {
         }
     }
 }
+
+#[test]
+fn a_ball_resting_on_the_floor_and_the_floor_under_it_return_no_more_light_than_they_get() {
+    // The corner fixture (a ball resting on the floor among other things)
+    // under a sky L and a low sun (8° up, in under the ball) of solid angle
+    // Ω at L_sun: no texel takes in more than (L + L_sun·Ω/π)/(1 − ρ_max)
+    // (directly at most L + L_sun·Ω/π, and each bounce returns at most
+    // ρ_max of the most any texel takes). The ball's lowest patch and the
+    // floor under it lie millimetres apart; seen from just under it, the
+    // patch's sub-cell squares overlap, and with their form factors summed
+    // past 1 the two passed light back and forth with a gain over 1 until
+    // the bake was infinite (1e36, then NaN, after 4,000 shots).
+    let gpu = common::gpu();
+    let builder = bake::fixtures::corner();
+    let sun = Vec3::new(0.804, 0.137, 0.578).normalize();
+    let (sun_cos, l_sun, l_sky) = (0.99995f32, 20000.0f32, 1.0f32);
+    let sky =
+        EnvironmentMap::from_fn(1024, 512, |d| if Vec3::from(d).dot(sun) > sun_cos { [l_sun; 3] } else { [l_sky; 3] });
+    let lights = common::lights(&sky, LightMode::Budget { count: 64 });
+    let mut options = common::options(128);
+    options.solve.contact = false;
+    let baked = common::bake(&gpu, &builder, &lights, &options);
+    let rho = baked.texels.texels.iter().flat_map(|t| t.albedo).fold(0.0f32, f32::max);
+    let omega = std::f32::consts::TAU * (1.0 - sun_cos);
+    // The map's pixels at the sun's edge: a few percent of slack.
+    let bound = 1.05 * (l_sky + l_sun * omega / std::f32::consts::PI) / (1.0 - rho);
+    let most = baked.solution.lightmap.iter().flatten().fold(0.0f32, |a, &b| a.max(b));
+    eprintln!("brightest texel {most} (bound {bound}, ρ_max {rho})");
+    assert!(most <= bound, "a texel takes in {most}, more than {bound}");
+}
