@@ -208,7 +208,7 @@ pub fn parse_tolerance(text: &str) -> Result<f64, String> {
 
 /// Reads a report, refusing another schema version with a clear message.
 pub fn read_report(path: &Path) -> Result<Report> {
-    let bytes = std::fs::read(path).with_context(|| format!("report '{}': cannot read", path.display()))?;
+    let bytes = crate::files::read(path).with_context(|| format!("report '{}': cannot read", path.display()))?;
     let value: serde_json::Value = serde_json::from_slice(&bytes)
         .with_context(|| format!("report '{}': not JSON (a baked report.json was expected)", path.display()))?;
     match value.get("schema_version").and_then(serde_json::Value::as_u64) {
@@ -262,14 +262,18 @@ pub fn run(options: &CheckOptions) -> Result<Findings> {
         findings.violations.extend(invariants(scene));
         let dir = report_path.parent().unwrap_or(Path::new("."));
         let lightmap = dir.join(format!("{}.lightmap{}.exr", scene.name, scene.atlas.index));
-        if lightmap.is_file() {
-            findings.violations.extend(lightmap_violations(&lightmap, scene)?);
-            findings.lightmaps.push(lightmap);
-        } else if only_scene.is_some() {
-            findings.violations.push(Violation {
-                scene: scene.name.clone(),
-                message: format!("lightmap '{}' is missing", lightmap.display()),
-            });
+        // A bake writes every scene's lightmap beside its report: one that is
+        // gone, or is no file, is a failed check, never a pass unchecked.
+        let missing = |message: String| Violation { scene: scene.name.clone(), message };
+        match crate::files::open(&lightmap) {
+            Ok((file, length)) => {
+                findings.violations.extend(lightmap_violations(&lightmap, file, length, scene)?);
+                findings.lightmaps.push(lightmap);
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                findings.violations.push(missing(format!("lightmap '{}' is missing", lightmap.display())));
+            }
+            Err(e) => findings.violations.push(missing(format!("lightmap '{}': {e}", lightmap.display()))),
         }
     }
     if let Some(env) = &report.environment {
@@ -531,14 +535,30 @@ pub fn energy_balance(scene: &SceneReport) -> Result<Balance, String> {
 /// size the report says, and every covered texel written: at least as many
 /// non-zero texels and as much Σ L_lm as the covered texels hold (dilation
 /// only adds texels outside the charts).
-pub fn lightmap_violations(path: &Path, scene: &SceneReport) -> Result<Vec<Violation>> {
+/// `file` is the lightmap opened, `length` its size in bytes.
+pub fn lightmap_violations(
+    path: &Path,
+    mut file: std::fs::File,
+    length: u64,
+    scene: &SceneReport,
+) -> Result<Vec<Violation>> {
+    use exr::prelude::*;
+    use std::io::{Seek, SeekFrom};
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let image = exr::prelude::read_first_rgba_layer_from_file(
-        path,
-        |size, _| (size.width(), vec![[0f32; 3]; size.width() * size.height()]),
-        |(width, pixels), p, (r, g, b, _a): (f32, f32, f32, f32)| pixels[p.y() * *width + p.x()] = [r, g, b],
-    )
-    .with_context(|| format!("lightmap '{}': cannot read", path.display()))?;
+    let cannot_read = || format!("lightmap '{}': cannot read", path.display());
+    crate::environment::check_exr_size(&file, length).map_err(|e| anyhow::anyhow!("{e}")).with_context(cannot_read)?;
+    file.seek(SeekFrom::Start(0)).with_context(cannot_read)?;
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgba_channels(
+            |size, _| (size.width(), vec![[0f32; 3]; size.width() * size.height()]),
+            |(width, pixels), p, (r, g, b, _a): (f32, f32, f32, f32)| pixels[p.y() * *width + p.x()] = [r, g, b],
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(std::io::BufReader::new(file))
+        .with_context(cannot_read)?;
     let (width, pixels) = image.layer_data.channel_data.pixels;
     let height = pixels.len().checked_div(width).unwrap_or(0);
     let mut out = Vec::new();

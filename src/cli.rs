@@ -33,6 +33,8 @@ use crate::unwrap::{Backend, UnwrapOptions};
     version,
     about,
     long_about,
+    // `--padding -1` is a value out of range, not an unknown option `-1`.
+    allow_negative_numbers = true,
     args_conflicts_with_subcommands = true,
     subcommand_negates_reqs = true
 )]
@@ -59,11 +61,11 @@ pub struct Args {
 
     /// Largest lightmap width and height in texels, at most the adapter's largest texture (16384 on lavapipe);
     /// a density that does not fit is lowered, with a notice
-    #[arg(long, value_name = "N", default_value_t = 1024)]
+    #[arg(long, value_name = "N", default_value_t = 1024, value_parser = clap::value_parser!(u32).range(16..))]
     pub max_atlas_size: u32,
 
     /// Empty texels kept around each lightmap chart
-    #[arg(long, value_name = "N", default_value_t = 2)]
+    #[arg(long, value_name = "N", default_value_t = 2, value_parser = clap::value_parser!(u32).range(0..=64))]
     pub padding: u32,
 
     /// UV unwrapper for the lightmap UVs
@@ -118,7 +120,7 @@ pub struct Args {
     pub max_time: Option<f64>,
 
     /// About how many shooter patches to group the lightmap texels into for bounced light
-    #[arg(long, value_name = "N", default_value_t = 1024)]
+    #[arg(long, value_name = "N", default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..=1 << 20))]
     pub patches: u32,
 
     /// Exposure in stops of the 8-bit preview texture viewers show (the EXR is not scaled)
@@ -161,7 +163,7 @@ pub struct Args {
     pub reference: Option<usize>,
 
     /// Paths per texel for --reference (its noise falls as 1/√samples)
-    #[arg(long, value_name = "N", default_value_t = 256)]
+    #[arg(long, value_name = "N", default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=1 << 20))]
     pub reference_samples: u32,
 }
 
@@ -220,13 +222,7 @@ impl Args {
         {
             bail!("--texels-per-unit must be a positive number, not {t}");
         }
-        // The upper limit is the adapter's largest texture, checked once it is open.
-        if self.max_atlas_size < 16 {
-            bail!("--max-atlas-size must be at least 16, not {}", self.max_atlas_size);
-        }
-        if self.padding > 64 {
-            bail!("--padding must be at most 64 texels, not {}", self.padding);
-        }
+        // --max-atlas-size's upper limit is the adapter's largest texture, checked once it is open.
         if !(self.env_rotation.is_finite()) {
             bail!("--env-rotation must be a finite angle");
         }
@@ -244,14 +240,8 @@ impl Args {
         {
             bail!("--max-time must be a number of seconds ≥ 0, not {seconds}");
         }
-        if !(1..=1 << 20).contains(&self.patches) {
-            bail!("--patches must be between 1 and 1048576, not {}", self.patches);
-        }
         if self.reference.is_some_and(|n| !(1..=65536).contains(&n)) {
-            bail!("--reference must be between 1 and 65536 texels");
-        }
-        if !(1..=1 << 20).contains(&self.reference_samples) {
-            bail!("--reference-samples must be between 1 and 1048576, not {}", self.reference_samples);
+            bail!("--reference must be between 1 and 65536 texels, not {}", self.reference.unwrap_or(0));
         }
         if !self.exposure.is_finite() {
             bail!("--exposure must be finite");

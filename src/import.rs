@@ -221,7 +221,21 @@ fn finish_primitives(gathered: Vec<Gathered>, notices: &mut Vec<String>) -> Resu
         }
         primitives.push(primitive);
     }
+    // Nothing to lay out in a lightmap: refused here, before the unwrap and
+    // texelize stages divide by the scene's area.
+    if !primitives.iter().any(has_area) {
+        bail!("no triangle has any area (the corners of each coincide or lie on one line): nothing to lightmap");
+    }
     Ok((origin.to_array(), primitives))
+}
+
+/// Whether any triangle of `primitive` has a non-zero area in f32 positions.
+fn has_area(primitive: &ScenePrimitive) -> bool {
+    let corner = |i: u32| DVec3::from(primitive.positions[i as usize].map(f64::from));
+    primitive.indices.chunks_exact(3).any(|t| {
+        let [a, b, c] = [corner(t[0]), corner(t[1]), corner(t[2])];
+        (b - a).cross(c - a).length_squared() > 0.0
+    })
 }
 
 fn collect_mesh(

@@ -14,6 +14,7 @@ pub mod cli;
 pub mod config;
 pub mod environment;
 pub mod export;
+pub mod files;
 pub mod fixtures;
 pub mod gpu;
 pub mod import;
@@ -150,7 +151,17 @@ pub fn bake_scene(
     }
     notices.extend(atlas.notices.iter().cloned());
     let texels = stage(gpu, progress, &mut stages, &name, "texelize", |_| {
-        let texels = texelize::run(gpu, &scene, &atlas)?;
+        let texels = match atlas.width * atlas.height {
+            0 => None,
+            _ => Some(texelize::run(gpu, &scene, &atlas)?).filter(|t| !t.texels.is_empty()),
+        };
+        // Too low a density leaves nothing to bake: the user's to change, not a GPU failure.
+        let Some(texels) = texels else {
+            bail!(
+                "at {} texels per metre the scene covers no lightmap texel: raise --texels-per-unit",
+                atlas.texels_per_unit
+            );
+        };
         let summary = format!("{} texels covering {:.4} m²", texels.texels.len(), texels.total_area());
         Ok((texels, summary))
     })?;
@@ -285,13 +296,8 @@ pub fn load_environment(path: &Path, options: &EnvironmentOptions) -> Result<(Li
 /// readable files. Errors name the file.
 pub fn preflight(config: &Config) -> Result<()> {
     let readable = |path: &Path, what: &str| -> Result<()> {
-        let check = || -> std::io::Result<()> {
-            if std::fs::metadata(path)?.is_dir() {
-                return Err(std::io::Error::other("is a folder, not a file"));
-            }
-            std::fs::File::open(path).map(|_| ())
-        };
-        check().map_err(|e| anyhow::anyhow!("{what} '{}': cannot read: {e}", path.display()))
+        let opened = files::open(path).map(|_| ());
+        opened.map_err(|e| anyhow::anyhow!("{what} '{}': cannot read: {e}", path.display()))
     };
     for input in &config.inputs {
         readable(input, "input")?;

@@ -8,11 +8,15 @@ use clap::Parser;
 use bake::check::EXIT_ERROR;
 use bake::cli::{Args, CheckArgs, Command};
 use bake::gpu::Gpu;
-use bake::progress::{LogMode, Reporter};
+use bake::progress::{LogMode, Reporter, printable};
 
 fn main() -> ExitCode {
     quiet_mesa_runtime_dir_warning();
-    let mut args = Args::parse();
+    let mut args = match Args::try_parse() {
+        Ok(args) => args,
+        Err(error) => return usage_error(error),
+    };
+    bake::output::remove_staging_on_signals();
     let json_errors = args.log_format == bake::cli::LogFormat::Json && !args.quiet;
     let result = match args.command.take() {
         Some(Command::Check(check)) => run_check(&check),
@@ -22,10 +26,24 @@ fn main() -> ExitCode {
         if json_errors {
             eprintln!("{}", serde_json::json!({ "event": "error", "message": format!("{error:#}") }));
         } else {
-            eprintln!("bake: error: {error:#}");
+            eprintln!("bake: error: {}", printable(&format!("{error:#}")));
         }
         ExitCode::from(EXIT_ERROR)
     })
+}
+
+/// Help and version as clap prints them; any other command-line error as
+/// one line (clap's own takes two to five, with usage and tips).
+fn usage_error(error: clap::Error) -> ExitCode {
+    use clap::error::ErrorKind;
+    if matches!(error.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+        error.exit();
+    }
+    let text = error.render().to_string();
+    let kept = |line: &&str| !(line.is_empty() || ["Usage:", "For more", "tip:"].iter().any(|s| line.starts_with(s)));
+    let line = text.lines().map(str::trim).filter(kept).collect::<Vec<_>>().join(" ");
+    eprintln!("bake: error: {}", printable(line.strip_prefix("error: ").unwrap_or(&line)));
+    ExitCode::from(EXIT_ERROR)
 }
 
 fn run(args: Args) -> anyhow::Result<()> {

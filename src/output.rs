@@ -5,8 +5,61 @@
 
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
+use std::sync::{Mutex, MutexGuard};
 
 use anyhow::{Context, Result, bail};
+
+/// The name of a run's staging folder: the prefix and the run's process id.
+const STAGING_PREFIX: &str = ".bake-staging-";
+
+/// This process's staging folders, for the signal handler to remove.
+static ACTIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn active() -> MutexGuard<'static, Vec<PathBuf>> {
+    ACTIVE.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// Removes this run's staging folders when SIGINT or SIGTERM ends it, then
+/// exits with 128 + the signal, as a shell reports it. SIGKILL cannot be
+/// caught: the next run into the same folder removes what it left.
+pub fn remove_staging_on_signals() {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) else { return };
+    std::thread::spawn(move || {
+        if let Some(signal) = signals.forever().next() {
+            // Holding the lock until exit: a commit under way finishes first, and no new folder appears.
+            let mut dirs = active();
+            for dir in dirs.drain(..) {
+                let _ = std::fs::remove_dir_all(dir);
+            }
+            std::process::exit(128 + signal);
+        }
+    });
+}
+
+/// Removes the staging folders in `parent` whose process is gone (killed,
+/// or the machine went down), so they do not pile up in an output folder.
+fn remove_stale(parent: &Path) {
+    let Ok(entries) = std::fs::read_dir(parent) else { return };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let pid = name.to_str().and_then(|n| n.strip_prefix(STAGING_PREFIX)).and_then(|p| p.parse::<u32>().ok());
+        if pid.is_some_and(|pid| !process_exists(pid)) {
+            let _ = std::fs::remove_dir_all(entry.path());
+        }
+    }
+}
+
+#[cfg(target_os = "linux")]
+fn process_exists(pid: u32) -> bool {
+    Path::new("/proc").join(pid.to_string()).exists()
+}
+
+/// Elsewhere a folder is never taken for stale.
+#[cfg(not(target_os = "linux"))]
+fn process_exists(_: u32) -> bool {
+    true
+}
 
 /// A staging folder for one run's outputs.
 pub struct Staging {
@@ -43,7 +96,7 @@ impl Staging {
         if output.exists() && !output.is_dir() {
             bail!("output '{}' exists and is not a folder", output.display());
         }
-        let unique = format!(".bake-staging-{}", std::process::id());
+        let unique = format!("{STAGING_PREFIX}{}", std::process::id());
         let dir = if output.is_dir() {
             output.join(unique)
         } else {
@@ -52,7 +105,10 @@ impl Staging {
                 None => std::env::temp_dir().join(unique),
             }
         };
+        remove_stale(dir.parent().unwrap_or(Path::new(".")));
+        let mut dirs = active();
         std::fs::create_dir_all(&dir).with_context(|| format!("cannot create staging folder '{}'", dir.display()))?;
+        dirs.push(dir.clone());
         let protected = inputs.iter().filter_map(|p| p.canonicalize().ok()).collect();
         Ok(Staging { dir, output: output.to_path_buf(), protected, committed: false })
     }
@@ -76,6 +132,8 @@ impl Staging {
     /// Moves every staged file into the output folder (replacing older ones),
     /// after checking that none would replace an input file.
     pub fn commit(mut self) -> Result<()> {
+        // A signal now waits for the files to be moved.
+        let _moving = active();
         std::fs::create_dir_all(&self.output)
             .with_context(|| format!("cannot create output folder '{}'", self.output.display()))?;
         let mut entries: Vec<PathBuf> =
@@ -106,6 +164,7 @@ impl Staging {
 
 impl Drop for Staging {
     fn drop(&mut self) {
+        active().retain(|dir| dir != &self.dir);
         if !self.committed {
             let _ = std::fs::remove_dir_all(&self.dir);
         }

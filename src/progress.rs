@@ -171,6 +171,7 @@ impl Progress for Reporter {
     }
 
     fn notice(&mut self, message: &str) {
+        let message = printable(message);
         match &self.bar {
             Some(bar) => bar.println(format!("note: {message}")),
             None if self.mode == LogMode::Quiet => {}
@@ -304,4 +305,12 @@ impl Summary {
         out.push_str(&format!("{:<10} {}\n", "report", self.report.display()));
         out
     }
+}
+
+/// `text` with every control character escaped (`\n`, `\0`, `\u{1b}`):
+/// names and bytes an input supplies may hold them, and must neither split
+/// a one-line message nor drive the user's terminal.
+pub fn printable(text: &str) -> String {
+    let escape = |c: char| if c.is_control() { c.escape_debug().to_string() } else { c.to_string() };
+    text.chars().map(escape).collect()
 }

@@ -67,8 +67,9 @@ pub struct InputFile {
 impl InputFile {
     /// Reads and hashes `path`.
     pub fn hash(role: &str, path: &Path) -> Result<InputFile> {
-        let mut file =
-            std::fs::File::open(path).with_context(|| format!("{role} '{}': cannot read", path.display()))?;
+        let (file, length) =
+            crate::files::open(path).with_context(|| format!("{role} '{}': cannot read", path.display()))?;
+        let mut file = file.take(length);
         let mut hasher = Sha256::new();
         let mut buffer = vec![0u8; 1 << 16];
         let mut bytes = 0u64;

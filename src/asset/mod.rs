@@ -4,7 +4,8 @@
 //!
 //! External files are resolved relative to the input's folder and must stay
 //! inside it: a URI that climbs out (`../secret.bin`, an absolute path) is
-//! refused, so a build step never reads files the asset does not own.
+//! refused, and so is one whose resolved path (through symbolic links) lies
+//! outside, so a build step never reads files the asset does not own.
 
 pub mod accessor;
 pub mod draco;
@@ -55,7 +56,7 @@ pub struct SourceAsset {
 impl SourceAsset {
     /// Reads and validates a `.gltf` or `.glb` file and every buffer it uses.
     pub fn load(path: &Path) -> Result<SourceAsset> {
-        let bytes = std::fs::read(path).map_err(|e| anyhow!("cannot read: {e}"))?;
+        let bytes = crate::files::read(path).map_err(|e| anyhow!("cannot read: {e}"))?;
         let base = path.parent().unwrap_or(Path::new("."));
         Self::from_bytes(path, &bytes, Some(base))
     }
@@ -280,11 +281,12 @@ fn resolve_uri(uri: &str, base: Option<&Path>) -> Result<Vec<u8>> {
             .map_err(|e| anyhow!("data URI is not valid base64: {e}"));
     }
     let path = external_path(uri, base)?;
-    std::fs::read(&path).map_err(|e| anyhow!("cannot read '{}': {e}", path.display()))
+    crate::files::read(&path).map_err(|e| anyhow!("cannot read '{}': {e}", path.display()))
 }
 
 /// The file a relative URI names inside `base`, refusing URIs that leave it
-/// (`..`, absolute paths) or name another scheme.
+/// (`..`, absolute paths, a symbolic link that resolves outside) or name
+/// another scheme.
 fn external_path(uri: &str, base: Option<&Path>) -> Result<PathBuf> {
     if uri.contains("://") {
         bail!("refusing to fetch '{uri}': only files beside the asset and data URIs are read");
@@ -297,7 +299,17 @@ fn external_path(uri: &str, base: Option<&Path>) -> Result<PathBuf> {
     {
         bail!("refusing '{uri}': it points outside the asset's folder");
     }
-    Ok(base.join(relative))
+    let path = base.join(relative);
+    // A symbolic link inside the folder may point anywhere: the policy must
+    // hold for the path the file system resolves too. A path that does not
+    // resolve (a missing file) is left for the read to report.
+    let folder = if base.as_os_str().is_empty() { Path::new(".") } else { base };
+    if let (Ok(resolved), Ok(folder)) = (path.canonicalize(), folder.canonicalize())
+        && !resolved.starts_with(&folder)
+    {
+        bail!("refusing '{uri}': it points outside the asset's folder (through a symbolic link)");
+    }
+    Ok(path)
 }
 
 /// Splits a `.glb` into its JSON chunk and its BIN chunk (if any), saying

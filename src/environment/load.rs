@@ -59,19 +59,16 @@ fn one_line(s: &str) -> String {
 }
 
 fn load_inner(path: &Path, options: &EnvLoadOptions) -> Result<LoadedEnvironment, String> {
-    let mut file = File::open(path).map_err(|e| format!("cannot open file: {e}"))?;
-    if file.metadata().map(|m| m.is_dir()).unwrap_or(false) {
-        return Err("is a directory, not an image file".into());
-    }
+    let (mut file, length) = crate::files::open(path).map_err(|e| format!("cannot open file: {e}"))?;
     let mut head = [0u8; 16];
     let n = read_up_to(&mut file, &mut head).map_err(|e| format!("cannot read file: {e}"))?;
     let head = &head[..n];
     file.seek(SeekFrom::Start(0)).map_err(|e| format!("cannot read file: {e}"))?;
     let mut notices = Vec::new();
     let map = if head.starts_with(&EXR_MAGIC) {
-        read_exr(file, &mut notices)?
+        read_exr(file, length, &mut notices)?
     } else if head.starts_with(b"#?") {
-        read_hdr(file, head.starts_with(b"#?RADIANCE"), &mut notices)?
+        read_hdr(file, length, head.starts_with(b"#?RADIANCE"), &mut notices)?
     } else {
         return Err(format!(
             "not an OpenEXR or Radiance HDR file ({}); an environment must be an \
@@ -174,7 +171,33 @@ fn layer_label(part_name: Option<&str>, prefix: &str, parts: usize) -> String {
 /// (part index, channel-name prefix, [(base name, channel index)]).
 type ChannelGroup = (usize, String, Vec<(String, usize)>);
 
-fn read_exr(file: File, notices: &mut Vec<String>) -> Result<EnvironmentMap, String> {
+/// Decoded bytes one byte of an EXR file can hold at most: deflate's limit
+/// (ZIP, PXR24 and the DWA codecs end in it; PIZ's coded runs stay below it),
+/// 64 for RLE (a two-byte run of 128), 1 uncompressed.
+fn exr_ratio(compression: exr::compression::Compression) -> u64 {
+    use exr::compression::Compression;
+    match compression {
+        Compression::Uncompressed => 1,
+        Compression::RLE => 64,
+        _ => 1032,
+    }
+}
+
+/// Refuses an EXR whose parts declare more texels than the file can hold.
+pub(crate) fn check_exr_size(file: &File, length: u64) -> Result<(), String> {
+    let meta = exr::meta::MetaData::read_from_buffered(BufReader::new(file), false)
+        .map_err(|e| format!("cannot decode OpenEXR: {e}"))?;
+    for header in &meta.headers {
+        let (size, bytes) = (header.layer_size, header.channels.bytes_per_pixel as u64);
+        let ratio = exr_ratio(header.compression);
+        crate::files::check_declared(size.width() as u64, size.height() as u64, bytes, length, ratio)?;
+    }
+    Ok(())
+}
+
+fn read_exr(mut file: File, length: u64, notices: &mut Vec<String>) -> Result<EnvironmentMap, String> {
+    check_exr_size(&file, length)?;
+    file.seek(SeekFrom::Start(0)).map_err(|e| format!("cannot read file: {e}"))?;
     let image = exr::prelude::read()
         .no_deep_data()
         .largest_resolution_level()
@@ -433,7 +456,17 @@ fn convert_primaries(map: &mut EnvironmentMap, ch: &exr::meta::attribute::Chroma
 // ---------------------------------------------------------------------------------------------
 // Radiance RGBE
 
-fn read_hdr(file: File, strict_signature: bool, notices: &mut Vec<String>) -> Result<EnvironmentMap, String> {
+/// Decoded bytes (RGB f32) one byte of a Radiance file can hold at most:
+/// its run-length scanlines pack 127 texels into 2 bytes per channel. The
+/// old, denser run-length scheme of files before 1991 is refused past it.
+const HDR_RATIO: u64 = 127 * 12 / 8 + 1;
+
+fn read_hdr(
+    file: File,
+    length: u64,
+    strict_signature: bool,
+    notices: &mut Vec<String>,
+) -> Result<EnvironmentMap, String> {
     use image::ImageDecoder;
     use image::codecs::hdr::HdrDecoder;
     let reader = BufReader::new(file);
@@ -443,6 +476,7 @@ fn read_hdr(file: File, strict_signature: bool, notices: &mut Vec<String>) -> Re
         .map_err(|e| format!("cannot decode Radiance HDR: {e}"))?;
     let meta = decoder.metadata();
     let (w, h) = decoder.dimensions();
+    crate::files::check_declared(w as u64, h as u64, 12, length, HDR_RATIO)?;
     let n = (w as usize).checked_mul(h as usize).ok_or_else(|| format!("image too large ({w}×{h})"))?;
     let mut texels = vec![[0.0f32; 3]; n];
     decoder

@@ -44,6 +44,7 @@ use std::str::FromStr;
 use serde::{Deserialize, Serialize};
 
 pub use load::EnvLoadError;
+pub(crate) use load::check_exr_size;
 pub use write::{ExrPrecision, write_exr, write_hdr};
 
 /// Rec. 709 / sRGB-primaries luminance of linear RGB: `0.2126 R + 0.7152 G + 0.0722 B`.

@@ -75,7 +75,7 @@ impl Case {
                 command.args(default);
             }
         }
-        command.output().expect("bake runs")
+        finish(command)
     }
 
     /// Runs `bake INPUT --env sky_constant.hdr` on a file written here.
@@ -101,6 +101,23 @@ impl Case {
         eprintln!("{line}");
         line.to_string()
     }
+}
+
+/// Runs `command` to its end, failing the test if that takes more than a
+/// minute: a run that blocks on its input must not block the suite.
+fn finish(mut command: Command) -> Output {
+    use std::process::Stdio;
+    let mut child = command.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("bake runs");
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    while child.try_wait().unwrap().is_none() {
+        if std::time::Instant::now() > deadline {
+            child.kill().unwrap();
+            let output = child.wait_with_output().unwrap();
+            panic!("bake still running after 60 s: {}", String::from_utf8_lossy(&output.stderr));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
 }
 
 #[test]
@@ -302,6 +319,95 @@ fn uris_pointing_outside_the_input_folder_are_refused() {
         "image.glb",
         "image 0: refusing '../secret.png': it points outside the asset's folder",
     );
+}
+
+#[test]
+fn symlinks_resolving_outside_the_input_folder_are_refused() {
+    // Each link names a file that exists and would bake: only the policy can refuse it.
+    let outer = tempfile::tempdir().unwrap();
+    let (_, bin) = parts();
+    std::fs::write(outer.path().join("secret.bin"), &bin).unwrap();
+    std::fs::write(outer.path().join("secret.png"), b"\x89PNG\r\n\x1a\n").unwrap();
+    let case = Case { dir: tempfile::tempdir_in(outer.path()).unwrap() };
+    let link = |target: &Path, name: &str| std::os::unix::fs::symlink(target, case.path(name)).unwrap();
+    link(Path::new("../secret.bin"), "relative.bin");
+    link(&outer.path().join("secret.bin"), "absolute.bin");
+    link(outer.path(), "sub");
+    link(Path::new("/etc/passwd"), "passwd.bin");
+    for (name, uri) in
+        [("relative.gltf", "relative.bin"), ("absolute.gltf", "absolute.bin"), ("sub.gltf", "sub/secret.bin")]
+    {
+        gltf_with_buffer(&case, name, uri);
+        let line = case.refused(&[name], name, "buffer 0: refusing");
+        assert!(line.contains("outside the asset's folder"), "{line}");
+    }
+    // A second buffer of the password file's length: its size must not show either.
+    let (mut json, bin) = parts();
+    case.write("scene.bin", &bin);
+    json["buffers"][0]["uri"] = json!("scene.bin");
+    let length = std::fs::metadata("/etc/passwd").unwrap().len();
+    json["buffers"].as_array_mut().unwrap().push(json!({ "uri": "passwd.bin", "byteLength": length }));
+    case.write("second.gltf", &serde_json::to_vec(&json).unwrap());
+    let line = case.refused(&["second.gltf"], "second.gltf", "buffer 1: refusing 'passwd.bin'");
+    assert!(!line.contains(&length.to_string()), "{line}");
+    link(Path::new("../secret.png"), "albedo.png");
+    case.write("image.glb", &glb_with_image("albedo.png"));
+    case.refused(&["image.glb"], "image.glb", "image 0: refusing 'albedo.png': it points outside the asset's folder");
+}
+
+#[test]
+fn symlinks_inside_the_input_folder_are_followed() {
+    let case = Case::new();
+    let bin = gltf_with_buffer(&case, "scene.gltf", "alias.bin");
+    std::fs::create_dir(case.path("data")).unwrap();
+    case.write("data/scene.bin", &bin);
+    std::os::unix::fs::symlink("data/scene.bin", case.path("alias.bin")).unwrap();
+    let output = case.bake("scene.gltf");
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+}
+
+/// A FIFO (nobody writes to it) at `name` in the case's folder.
+fn mkfifo(case: &Case, name: &str) {
+    let status = Command::new("mkfifo").arg(case.path(name)).status().expect("mkfifo runs");
+    assert!(status.success());
+}
+
+#[test]
+fn inputs_that_are_not_regular_files_are_refused() {
+    let case = Case::new();
+    let env = fixture("sky_constant.hdr");
+    let env = env.to_str().unwrap();
+    // Each role gets a FIFO (which blocks a reader forever) and a link to /dev/zero (which never ends).
+    mkfifo(&case, "fifo.glb");
+    std::os::unix::fs::symlink("/dev/zero", case.path("zero.glb")).unwrap();
+    for name in ["fifo.glb", "zero.glb"] {
+        case.refused(&[name, "--env", env], name, "not a regular file");
+    }
+    mkfifo(&case, "fifo.hdr");
+    std::os::unix::fs::symlink("/dev/zero", case.path("zero.hdr")).unwrap();
+    std::fs::copy(fixture("sphere_on_ground.glb"), case.path("scene.glb")).unwrap();
+    for name in ["fifo.hdr", "zero.hdr"] {
+        case.refused(&["scene.glb", "--env", name], name, "not a regular file");
+    }
+    mkfifo(&case, "fifo.bin");
+    std::os::unix::fs::symlink("/dev/zero", case.path("zero.bin")).unwrap();
+    // A file the asset names must lie in its folder, and /dev/zero does not.
+    for (name, uri, problem) in [
+        ("fifo.gltf", "fifo.bin", "buffer 0: cannot read 'fifo.bin': it is a FIFO (named pipe), not a regular file"),
+        ("zero.gltf", "zero.bin", "buffer 0: refusing 'zero.bin': it points outside the asset's folder"),
+    ] {
+        gltf_with_buffer(&case, name, uri);
+        case.refused(&[name], name, problem);
+    }
+    mkfifo(&case, "fifo.png");
+    std::os::unix::fs::symlink("/dev/zero", case.path("zero.png")).unwrap();
+    for (name, uri, problem) in [
+        ("fifo_image.glb", "fifo.png", "image 0: 'fifo.png' is not a file"),
+        ("zero_image.glb", "zero.png", "image 0: refusing 'zero.png'"),
+    ] {
+        case.write(name, &glb_with_image(uri));
+        case.refused(&[name], name, problem);
+    }
 }
 
 #[test]
@@ -644,4 +750,221 @@ fn punctual_lights_that_cannot_be_are_refused_naming_the_light() {
         case.write("lamp.glb", &scene.to_glb());
         case.refused(&["lamp.glb"], "lamp.glb", problem);
     }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Hostile inputs (issue 50)
+
+/// Sets bytes `at..` of the first `name` attribute's value (after its name,
+/// type and size) in an EXR header.
+fn patch_exr_attribute(bytes: &mut [u8], name: &str, kind: &str, value: &[u8]) {
+    let key = [name.as_bytes(), b"\0", kind.as_bytes(), b"\0"].concat();
+    let at = bytes.windows(key.len()).position(|w| w == key).unwrap() + key.len() + 4;
+    bytes[at..at + value.len()].copy_from_slice(value);
+}
+
+/// An EXR whose header declares a `width`×`height` image over the pixels of a 2×1 one.
+fn exr_declaring(case: &Case, width: i32, height: i32) -> Vec<u8> {
+    write_exr(case, "small.exr", &EnvironmentMap::from_fn(2, 1, |_| [1.0; 3]));
+    let mut bytes = std::fs::read(case.path("small.exr")).unwrap();
+    std::fs::remove_file(case.path("small.exr")).unwrap();
+    let window: Vec<u8> = [0, 0, width - 1, height - 1].iter().flat_map(|v: &i32| v.to_le_bytes()).collect();
+    patch_exr_attribute(&mut bytes, "dataWindow", "box2i", &window);
+    patch_exr_attribute(&mut bytes, "displayWindow", "box2i", &window);
+    bytes
+}
+
+#[test]
+fn image_headers_declaring_more_than_the_file_holds_are_refused_before_allocating() {
+    let case = Case::new();
+    std::fs::copy(fixture("sphere_on_ground.glb"), case.path("scene.glb")).unwrap();
+    for (width, height) in [(200000, 100000), (65536, 32768)] {
+        let header = format!("#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y {height} +X {width}\n");
+        case.write("huge.hdr", &[header.as_bytes(), &[2, 2, 0, 8, 1, 1, 1, 1]].concat());
+        case.refused(&["scene.glb", "--env", "huge.hdr"], "huge.hdr", "declares");
+        let exr = exr_declaring(&case, width, height);
+        case.write("huge.exr", &exr);
+        case.refused(&["scene.glb", "--env", "huge.exr"], "huge.exr", "declares");
+    }
+    // `bake check` re-reads a lightmap EXR beside the report.
+    let out = tempfile::tempdir().unwrap();
+    crate::common::bake_file(
+        &fixture("sphere_on_ground.glb"),
+        out.path(),
+        &["--max-atlas-size", "32", "--lights", "16"],
+    );
+    let exr = exr_declaring(&case, 65536, 32768);
+    std::fs::write(out.path().join("sphere_on_ground.lightmap0.exr"), exr).unwrap();
+    let output = finish({
+        let mut command = Command::new(env!("CARGO_BIN_EXE_bake"));
+        command.arg("check").arg(out.path().join("report.json"));
+        command
+    });
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(2), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("sphere_on_ground.lightmap0.exr") && stderr.contains("declares"), "{stderr}");
+}
+
+/// The fixture as a .gltf with `edit` applied to its JSON and its BIN chunk.
+fn edited(case: &Case, name: &str, edit: impl FnOnce(&mut Value, &mut Vec<u8>)) {
+    let (mut json, mut bin) = parts();
+    edit(&mut json, &mut bin);
+    case.write(name, &glb(&json, &bin));
+}
+
+#[test]
+fn scenes_where_no_triangle_has_any_area_are_refused() {
+    let case = Case::new();
+    edited(&case, "scaled.glb", |json, _| {
+        for node in json["nodes"].as_array_mut().unwrap() {
+            node["scale"] = json!([0.0, 0.0, 0.0]);
+        }
+    });
+    edited(&case, "points.glb", |json, bin| {
+        for a in 0..json["accessors"].as_array().unwrap().len() {
+            if json["accessors"][a]["type"] == "VEC3" && json["accessors"][a]["componentType"] == 5126 {
+                json["accessors"][a]["min"] = json!([0.0, 0.0, 0.0]);
+                json["accessors"][a]["max"] = json!([0.0, 0.0, 0.0]);
+                let count = json["accessors"][a]["count"].as_u64().unwrap() as usize;
+                let start = element_offset(json, a, 0);
+                bin[start..start + count * 12].fill(0);
+            }
+        }
+    });
+    edited(&case, "same_index.glb", |json, bin| {
+        for mesh in json["meshes"].as_array().unwrap().clone() {
+            let a = mesh["primitives"][0]["indices"].as_u64().unwrap() as usize;
+            let count = json["accessors"][a]["count"].as_u64().unwrap() as usize;
+            let size = if json["accessors"][a]["componentType"] == 5125 { 4 } else { 2 };
+            let start = element_offset(json, a, 0);
+            bin[start..start + count * size].fill(0);
+        }
+    });
+    for name in ["scaled.glb", "points.glb", "same_index.glb"] {
+        case.refused(&[name], name, "no triangle has any area");
+    }
+}
+
+#[test]
+fn a_density_that_yields_no_texels_is_a_user_error() {
+    let case = Case::new();
+    std::fs::copy(fixture("sphere_on_ground.glb"), case.path("scene.glb")).unwrap();
+    let env = fixture("sky_constant.hdr");
+    for density in ["1e-30", "1e-9"] {
+        let line = case.refused(
+            &["scene.glb", "--env", env.to_str().unwrap(), "--texels-per-unit", density],
+            "scene.glb",
+            "no lightmap texel",
+        );
+        assert!(line.contains("--texels-per-unit"), "{line}");
+    }
+}
+
+/// `bake check` of `out`'s report: its exit code and stdout + stderr.
+fn check(out: &Path) -> (Option<i32>, String) {
+    let output = finish({
+        let mut command = Command::new(env!("CARGO_BIN_EXE_bake"));
+        command.arg("check").arg(out.join("report.json"));
+        command
+    });
+    (
+        output.status.code(),
+        format!("{}{}", String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr)),
+    )
+}
+
+#[test]
+fn check_fails_when_the_lightmap_beside_the_report_is_missing_or_no_file() {
+    let out = tempfile::tempdir().unwrap();
+    crate::common::bake_file(
+        &fixture("sphere_on_ground.glb"),
+        out.path(),
+        &["--max-atlas-size", "32", "--lights", "16"],
+    );
+    let lightmap = out.path().join("sphere_on_ground.lightmap0.exr");
+    assert_eq!(check(out.path()).0, Some(0));
+    std::fs::remove_file(&lightmap).unwrap();
+    let (code, text) = check(out.path());
+    assert_eq!(code, Some(1), "{text}");
+    assert!(text.contains("sphere_on_ground.lightmap0.exr") && text.contains("missing"), "{text}");
+    for target in ["/dev/zero", "/"] {
+        let _ = std::fs::remove_file(&lightmap);
+        std::os::unix::fs::symlink(target, &lightmap).unwrap();
+        let (code, text) = check(out.path());
+        assert_ne!(code, Some(0), "{text}");
+        assert!(text.contains("sphere_on_ground.lightmap0.exr") && text.contains("not a regular file"), "{text}");
+    }
+}
+
+#[test]
+fn command_line_errors_are_one_line_naming_the_option_value_and_range() {
+    let case = Case::new();
+    std::fs::copy(fixture("sphere_on_ground.glb"), case.path("scene.glb")).unwrap();
+    for (option, value, range) in [
+        ("--padding", "-1", "0..=64"),
+        ("--padding", "65", "0..=64"),
+        ("--lights", "-1", "-1"),
+        ("--tolerance", "-1", "[0, 1)"),
+        ("--max-atlas-size", "-5", "16.."),
+        ("--patches", "0", "1..=1048576"),
+        ("--max-shots", "x", "x"),
+        ("--texels-per-unit", "-2", "positive"),
+    ] {
+        let line = case.refused(&["scene.glb", option, value], option, value);
+        assert!(line.contains(range), "{line}");
+    }
+    case.refused(&["scene.glb", "--no-such-option"], "--no-such-option", "unexpected");
+}
+
+#[test]
+fn control_characters_from_the_input_are_escaped() {
+    let case = Case::new();
+    let (json, bin) = parts();
+    let mut bytes = glb(&json, &bin);
+    bytes[16..20].copy_from_slice(b"\x1b[2J");
+    case.write("escape.glb", &bytes);
+    case.refused(&["escape.glb"], "escape.glb", "\\u{1b}[2J");
+    for (name, uri) in [("newline.gltf", "a%0Ab.bin"), ("nul.gltf", "a%00b.bin"), ("bell.gltf", "a%07b.bin")] {
+        gltf_with_buffer(&case, name, uri);
+        let line = case.refused(&[name], name, "buffer 0");
+        assert!(!line.chars().any(char::is_control), "{line:?}");
+    }
+}
+
+#[test]
+fn staging_folders_are_removed_on_a_signal_and_stale_ones_on_the_next_run() {
+    let case = Case::new();
+    std::fs::copy(fixture("sphere_on_ground.glb"), case.path("scene.glb")).unwrap();
+    let staging = |case: &Case| -> Vec<String> {
+        let entries = std::fs::read_dir(case.path("out")).map(|d| d.map(|e| e.unwrap().file_name()).collect());
+        let entries: Vec<_> = entries.unwrap_or_default();
+        entries.iter().map(|n| n.to_string_lossy().into_owned()).filter(|n| n.starts_with(".bake-staging-")).collect()
+    };
+    let env = fixture("sky_sun.exr");
+    // An existing output folder holds the staging folder.
+    std::fs::create_dir(case.path("out")).unwrap();
+    for signal in ["INT", "TERM"] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_bake"))
+            .current_dir(case.path(""))
+            .args(["scene.glb", "--env", env.to_str().unwrap(), "-o", "out", "-q", "--max-atlas-size", "256"])
+            .spawn()
+            .unwrap();
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+        while staging(&case).is_empty() {
+            assert!(std::time::Instant::now() < deadline && child.try_wait().unwrap().is_none(), "no staging folder");
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        let pid = child.id().to_string();
+        assert!(Command::new("kill").args(["-s", signal, &pid]).status().unwrap().success());
+        let status = child.wait().unwrap();
+        assert!(!status.success());
+        assert_eq!(staging(&case), Vec::<String>::new(), "SIG{signal} left the staging folder");
+    }
+    // One a killed run left: its process is gone, so the next run removes it.
+    std::fs::create_dir_all(case.path("out/.bake-staging-999999999/x")).unwrap();
+    std::fs::create_dir_all(case.path("out/.bake-staging-notapid")).unwrap();
+    let output = case.run(&["scene.glb", "--env", env.to_str().unwrap()]);
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    assert_eq!(staging(&case), [".bake-staging-notapid"]);
 }
