@@ -7,13 +7,10 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use crate::common::fixture;
 use bake::environment::{EnvironmentMap, ExrPrecision};
 use bake::report::Report;
 use serde_json::{Value, json};
-
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures").join(name)
-}
 
 /// The fixture `sphere_on_ground.glb` as (JSON, BIN chunk).
 fn parts() -> (Value, Vec<u8>) {

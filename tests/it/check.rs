@@ -4,18 +4,10 @@
 //! broken energy invariants fail; every fixture's bake keeps them; and the
 //! exit codes are the documented ones (0 pass, 1 check failed, 2 error).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
 
+use crate::common::{fixture, run_bake as run};
 use serde_json::Value;
-
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures").join(name)
-}
-
-fn run(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_bake")).current_dir(dir).args(args).output().expect("bake runs")
-}
 
 fn check(dir: &Path, args: &[&str]) -> (Option<i32>, String) {
     let mut full = vec!["check"];

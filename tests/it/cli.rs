@@ -3,22 +3,10 @@
 //! bad inputs give one-line errors naming the file, exit code 2, and leave
 //! no output behind.
 
-use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use crate::common::{fixture, run_bake as bake, stderr};
 use bake::report::Report;
-
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures").join(name)
-}
-
-fn bake(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_bake")).current_dir(dir).args(args).output().expect("bake runs")
-}
-
-fn stderr(output: &Output) -> String {
-    String::from_utf8_lossy(&output.stderr).into_owned()
-}
 
 /// The run failed with exit code 2 and exactly one error line mentioning `needle`.
 fn assert_one_line_error(output: &Output, needle: &str) {

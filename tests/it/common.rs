@@ -89,6 +89,21 @@ pub fn values_of(baked: &Baked, p: u32) -> Vec<(bake::texelize::Texel, f32)> {
 }
 
 /// `path` inside the repository.
+/// A file of fixtures/.
+pub fn fixture(name: &str) -> std::path::PathBuf {
+    repo("fixtures").join(name)
+}
+
+/// Runs the bake binary in `dir` with `args`.
+pub fn run_bake(dir: &Path, args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_bake")).current_dir(dir).args(args).output().expect("bake runs")
+}
+
+/// A run's stderr as text.
+pub fn stderr(output: &std::process::Output) -> String {
+    String::from_utf8_lossy(&output.stderr).into_owned()
+}
+
 pub fn repo(path: &str) -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
 }

@@ -12,15 +12,12 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+use crate::common::fixture;
 use bake::fixtures::{MeshData, Placement, SceneBuilder};
 use bake::gpu::LOSE_DEVICE_HOOK;
 
 /// Far longer than any of these bakes takes (under 2 s each): past it, the run hangs.
 const HANG: Duration = Duration::from_secs(120);
-
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures").join(name)
-}
 
 /// What a run left: exit code and stderr.
 struct Run {

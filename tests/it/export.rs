@@ -7,16 +7,13 @@
 //! not; no output ever replaces a file of an input.
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
+use crate::common::fixture;
 use bake::asset::{SourceAsset, accessor};
 use bake::report::Report;
 use serde_json::{Value, json};
-
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures").join(name)
-}
 
 /// Runs a tiny bake of `input` under the sun-and-sky fixture into `out`.
 fn bake(input: &Path, out: &Path, extra: &[&str]) -> Output {

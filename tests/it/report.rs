@@ -4,24 +4,13 @@
 //! inputs with their hashes, options, memory and energy, the run ends with a
 //! summary (text or JSON lines), and `--plot` writes the convergence plot.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
+use std::process::Output;
 
+use crate::common::{fixture, run_bake as bake, stderr};
 use bake::report::{Report, SCHEMA_VERSION};
 use serde_json::Value;
 use sha2::{Digest, Sha256};
-
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures").join(name)
-}
-
-fn bake(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_bake")).current_dir(dir).args(args).output().expect("bake runs")
-}
-
-fn stderr(output: &Output) -> String {
-    String::from_utf8_lossy(&output.stderr).into_owned()
-}
 
 /// A tiny bake of sphere_on_ground under the sun sky into `dir/out`, at most 64 shots, with `extra` arguments.
 fn bake_fixture(dir: &Path, extra: &[&str]) -> Output {
