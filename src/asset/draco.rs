@@ -57,23 +57,6 @@ pub fn decode(json: &mut Value, buffers: &mut Vec<Vec<u8>>) -> Result<usize> {
     Ok(compressed)
 }
 
-/// The accessors that Draco-compressed primitives fill when decoded: their
-/// attributes and indices that hold no data of their own.
-pub fn accessors_it_fills(json: &Value) -> Vec<usize> {
-    let primitives = json.get("meshes").and_then(Value::as_array).into_iter().flatten();
-    let primitives = primitives.filter_map(|m| m.get("primitives").and_then(Value::as_array)).flatten();
-    let compressed = primitives.filter(|p| p.pointer(&format!("/extensions/{EXTENSION}")).is_some());
-    let accessors = compressed.flat_map(|p| {
-        let attributes = p.get("attributes").and_then(Value::as_object).into_iter().flat_map(|a| a.values());
-        attributes.chain(p.get("indices")).filter_map(Value::as_u64).map(|a| a as usize).collect::<Vec<_>>()
-    });
-    let mut accessors: Vec<usize> =
-        accessors.filter(|&a| json.pointer(&format!("/accessors/{a}/bufferView")).is_none()).collect();
-    accessors.sort();
-    accessors.dedup();
-    accessors
-}
-
 /// Decodes one primitive's mesh into `decoded`, pointing its accessors at it,
 /// unless every accessor already has (fallback) data.
 fn decode_primitive(

@@ -503,3 +503,35 @@ fn a_scene_far_from_the_origin_is_written_back_where_it_was() {
         assert!((a / b - 1.0).abs() < 0.002, "{}: mean L_lm {a} far away, {b} at the origin", f.name);
     }
 }
+
+#[test]
+fn an_accessor_without_a_buffer_view_is_read_as_zeros() {
+    // glTF 2.0: an accessor with neither a bufferView nor sparse data is
+    // all zeros. A triangle whose TEXCOORD_0 is such an accessor bakes, and
+    // the accessor is carried through as it was.
+    let dir = tempfile::tempdir().unwrap();
+    let positions: Vec<u8> =
+        [0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, -1.0].iter().flat_map(|v| v.to_le_bytes()).collect();
+    use base64::Engine as _;
+    let uri = format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&positions)
+    );
+    let gltf = json!({
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}}]}],
+        "buffers": [{"byteLength": 36, "uri": uri}], "bufferViews": [{"buffer": 0, "byteLength": 36}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, -1], "max": [1, 0, 0]},
+            {"componentType": 5126, "count": 3, "type": "VEC2"}
+        ]
+    });
+    let input = dir.path().join("viewless.gltf");
+    std::fs::write(&input, serde_json::to_vec(&gltf).unwrap()).unwrap();
+    let out = dir.path().join("out");
+    bake_ok(&input, &out, &[]);
+    let baked = SourceAsset::load(&out.join("viewless.glb")).unwrap();
+    let texcoord = baked.document.meshes().next().unwrap().primitives().next().unwrap();
+    let uv0 = texcoord.get(&gltf::Semantic::TexCoords(0)).expect("TEXCOORD_0 carried through");
+    assert_eq!(accessor::read_floats(&baked, &uv0).unwrap(), vec![0.0; 6]);
+}
