@@ -2,9 +2,9 @@
 //! radiosity textures of 256²–1024² under 96–6,144 environment lights on a
 //! Quadro FX4400), baked again with our times next to the paper's, time and
 //! memory per stage, and the error against the CPU reference path tracer;
-//! then the direct pass's throughput against a bare kernel of the same shape
-//! on this adapter, and how the direct pass scales as texels, lights and
-//! triangles double. Results go to stdout as markdown; progress to stderr.
+//! then how the bounce pass scales as texels and triangles double, and the
+//! direct light at the meshes' vertices against the texels. Results go to
+//! stdout as markdown; progress to stderr.
 //!
 //! ```text
 //! cargo bench --bench table4                          # everything (see BENCHMARKS.md for how long)
@@ -54,9 +54,9 @@ enum Section {
 }
 
 #[derive(Parser)]
-#[command(about = "Table 4 of the seed paper, with errors, a bare-kernel ceiling and scaling")]
+#[command(about = "Table 4 of the seed paper, with errors, bounce scaling and a per-vertex baseline")]
 struct Args {
-    /// Smoke run: 96 lights at 256² in both modes, a small reference, the ceiling at 256².
+    /// Smoke run: 96 lights at 256² in both modes, a small reference.
     #[arg(long)]
     quick: bool,
     /// Atlas sizes (the paper's radiosity texture sizes).

@@ -44,6 +44,7 @@ use std::time::Instant;
 
 use anyhow::Result;
 use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use super::casters::{Casters, Topology};
@@ -400,8 +401,7 @@ pub fn run(
         .map(|(t, l)| luminance([l[0] as f64, l[1] as f64, l[2] as f64]) * t.area as f64)
         .sum();
 
-    let (centre, radius) = super::direct::bounding_sphere(scene);
-    let _ = centre;
+    let radius = scene_radius(scene);
     let shooter_count = options.shooters_per_batch.clamp(1, MAX_SHOOTERS);
     let face = options.hemicube_size.clamp(16, 2048);
     let tiles_per_row = ((gpu.limits.max_texture_dimension_2d / (3 * face)).max(1)).min(shooter_count);
@@ -595,6 +595,21 @@ pub fn run(
         normalized,
         trace,
     })
+}
+
+/// The radius of the scene's bounding sphere about the centre of its
+/// bounds, with a margin so that geometry never touches a hemicube's far
+/// plane.
+fn scene_radius(scene: &Scene) -> f32 {
+    let (lo, hi) = scene.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
+    let centre = (lo + hi) * 0.5;
+    let radius = scene
+        .primitives
+        .iter()
+        .flat_map(|p| p.positions.iter())
+        .map(|&p| (Vec3::from(p) - centre).length())
+        .fold(0.0f32, f32::max);
+    (radius * 1.02).max(f32::MIN_POSITIVE * 1e6)
 }
 
 /// The luminance a texel received from other surfaces: its lightmap value

@@ -8,8 +8,8 @@
 //! (`occluders`) sums up what above each point's face could block its light,
 //! and only lights whose cone reaches it get rays, traced through the
 //! scene's hierarchy on the GPU (`trace`). Rays are spread over a light's
-//! cone, turned per point, so a penumbra is soft and unbiased, and a light
-//! wider than `RAY_SOLID_ANGLE` gets one ray per that much of it.
+//! cone, turned per point, so a penumbra is soft and unbiased, and a wide or
+//! bright light gets more of them (`ray_count`).
 //!
 //! A CPU driver stops a shader's loops after 65,535 turns in all; a batch
 //! of lights that hits that limit anywhere is gathered again in halves.
@@ -18,11 +18,10 @@ use std::time::Instant;
 
 use anyhow::{Result, bail};
 use bytemuck::{Pod, Zeroable};
-use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use super::SolveOptions;
-use super::occluders::{self, OccluderPass};
+use super::occluders::OccluderPass;
 use crate::environment::{Light, LightSet, luminance};
 use crate::gpu::{self, Gpu, Shader, read_buffer};
 use crate::scene::Scene;
@@ -234,8 +233,8 @@ fn ray_count(omega: f32, share: f32) -> u32 {
 /// and the occluder and gather pipelines.
 pub struct DirectPass<'a> {
     gpu: &'a Gpu,
-    /// The scene as rays see it (the bind group below holds it).
-    pub scene: GpuScene,
+    /// The scene as rays see it, held for its bind group.
+    _scene: GpuScene,
     scene_group: wgpu::BindGroup,
     occluders: OccluderPass,
     gather: GatherPipeline,
@@ -244,11 +243,11 @@ pub struct DirectPass<'a> {
 impl<'a> DirectPass<'a> {
     pub fn new(gpu: &'a Gpu, scene: &Scene) -> Result<DirectPass<'a>> {
         let gpu_scene = GpuScene::new(gpu, scene)?;
-        let scene_layout = occluders::scene_layout(gpu);
-        let scene_group = occluders::scene_group(gpu, &scene_layout, &gpu_scene);
+        let scene_layout = GpuScene::bind_group_layout(gpu);
+        let scene_group = gpu_scene.bind_group(gpu, &scene_layout);
         let occluders = OccluderPass::new(gpu, &scene_layout);
         let gather = GatherPipeline::new(gpu, &scene_layout, gpu_scene.cut_out_constant());
-        Ok(DirectPass { gpu, scene: gpu_scene, scene_group, occluders, gather })
+        Ok(DirectPass { gpu, _scene: gpu_scene, scene_group, occluders, gather })
     }
 
     /// Gathers the environment's light at `points` (texels, or sub-samples
@@ -357,20 +356,6 @@ pub fn run(
 ) -> Result<Direct> {
     let gathered = DirectPass::new(gpu, scene)?.gather(&texels.texels, lights, options.batch_size, progress)?;
     Ok(gathered.into_direct(texels, lights))
-}
-
-/// The scene's bounding sphere (centre, radius with a margin so that
-/// geometry never touches a hemicube's far plane).
-pub(super) fn bounding_sphere(scene: &Scene) -> (Vec3, f32) {
-    let (lo, hi) = scene.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
-    let centre = (lo + hi) * 0.5;
-    let radius = scene
-        .primitives
-        .iter()
-        .flat_map(|p| p.positions.iter())
-        .map(|&p| (Vec3::from(p) - centre).length())
-        .fold(0.0f32, f32::max);
-    (centre, (radius * 1.02).max(f32::MIN_POSITIVE * 1e6))
 }
 
 /// Σ E·A over the texels, RGB: the power `irradiance` delivers.

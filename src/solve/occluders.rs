@@ -6,7 +6,6 @@
 use bytemuck::{Pod, Zeroable};
 
 use crate::gpu::{self, Gpu, Shader};
-use crate::trace::GpuScene;
 
 /// Mirrors `OccluderParams` in solve_occluders.wgsl.
 #[repr(C)]
@@ -79,21 +78,4 @@ impl OccluderPass {
         pass.dispatch_workgroups(groups_x, groups_y, 1);
         occluders
     }
-}
-
-/// The scene's bind group layout for passes that cast rays.
-pub fn scene_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
-    gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("trace scene"),
-        entries: &GpuScene::layout_entries(0),
-    })
-}
-
-/// The scene's bind group (`scene_layout`).
-pub fn scene_group(gpu: &Gpu, layout: &wgpu::BindGroupLayout, scene: &GpuScene) -> wgpu::BindGroup {
-    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("trace scene"),
-        layout,
-        entries: &scene.bind_entries(0),
-    })
 }

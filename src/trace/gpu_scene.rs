@@ -1,5 +1,5 @@
 //! The scene's triangles and their hierarchy laid out for GPU passes that
-//! cast rays (`shaders/trace.wgsl` reads it): one `Rgba32Uint` texture,
+//! cast rays (`shaders/include/trace.wgsl` reads it): one `Rgba32Uint` texture,
 //! since a CPU driver fetches texels far faster than storage buffers, in
 //! regions of 4-word records:
 //!
@@ -65,19 +65,15 @@ struct SceneTriangle {
     uv: [[f32; 4]; 3],
 }
 
-/// The scene on the GPU for ray casts.
+/// The scene on the GPU for ray casts: what its bind group binds.
 pub struct GpuScene {
-    pub texture: wgpu::Texture,
-    pub view: wgpu::TextureView,
-    pub layout: SceneLayout,
-    pub layout_buffer: wgpu::Buffer,
-    pub materials: Materials,
-    /// Triangles traced against.
-    pub triangles: usize,
-    /// Nodes whose triangles tile a convex polygon.
-    pub polygons: usize,
-    /// Triangles of cut-out materials.
-    pub cut_outs: usize,
+    /// The records; held for as long as the view is bound.
+    _records: wgpu::Texture,
+    view: wgpu::TextureView,
+    layout_buffer: wgpu::Buffer,
+    materials: Materials,
+    /// Whether any triangle's material cuts out holes.
+    cut_outs: bool,
 }
 
 impl GpuScene {
@@ -86,11 +82,11 @@ impl GpuScene {
     pub fn new(gpu: &Gpu, scene: &Scene) -> anyhow::Result<GpuScene> {
         let materials = Materials::upload(gpu, scene);
         let triangles = scene_triangles(scene, &materials);
-        let boxes: Vec<(DVec3, DVec3)> = triangles.iter().map(|t| bounds(&t.corners)).collect();
-        let tree = Tree::build(&boxes, LEAF);
         if triangles.len() >= 1 << 28 {
             anyhow::bail!("the scene has {} triangles; ray casts take at most {}", triangles.len(), (1u32 << 28) - 1);
         }
+        let boxes: Vec<(DVec3, DVec3)> = triangles.iter().map(|t| bounds(&t.corners)).collect();
+        let tree = Tree::build(&boxes, LEAF);
         let flat = tree.flatten();
         let ordered: Vec<&SceneTriangle> = tree.order.iter().map(|&i| &triangles[i as usize]).collect();
         let records = Records::new(&flat, &ordered);
@@ -121,30 +117,23 @@ impl GpuScene {
             _pad: [0; 3],
         };
         let layout_buffer = gpu.uniform_buffer("trace scene layout", &layout);
-        Ok(GpuScene {
-            texture,
-            view,
-            layout,
-            layout_buffer,
-            materials,
-            triangles: triangles.len(),
-            polygons: records.polygons,
-            cut_outs: triangles.iter().filter(|t| t.cut_out).count(),
-        })
+        let cut_outs = triangles.iter().any(|t| t.cut_out);
+        Ok(GpuScene { _records: texture, view, layout_buffer, materials, cut_outs })
     }
 
     /// The `CUT_OUTS` override of trace.wgsl: whether pipelines need the alpha test.
     pub fn cut_out_constant(&self) -> f64 {
-        if self.cut_outs > 0 { 1.0 } else { 0.0 }
+        if self.cut_outs { 1.0 } else { 0.0 }
     }
 
-    /// Bind-group-layout entries of the scene, from `first` on: the records,
-    /// their layout, the materials, their textures and sampler (cut-outs).
-    pub fn layout_entries(first: u32) -> [wgpu::BindGroupLayoutEntry; 5] {
+    /// The layout of the scene's bind group (group 1 of the passes that cast
+    /// rays): the records, their layout, the materials, their textures and
+    /// sampler (cut-outs).
+    pub fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
         let compute = wgpu::ShaderStages::COMPUTE;
-        [
+        let entries = [
             wgpu::BindGroupLayoutEntry {
-                binding: first,
+                binding: 0,
                 visibility: compute,
                 ty: wgpu::BindingType::Texture {
                     sample_type: wgpu::TextureSampleType::Uint,
@@ -153,28 +142,31 @@ impl GpuScene {
                 },
                 count: None,
             },
-            crate::gpu::uniform_entry(first + 1, compute),
-            crate::gpu::storage_entry(first + 2, true, compute),
-            crate::gpu::texture_array_entry(first + 3, compute),
-            crate::gpu::sampler_entry(first + 4, compute),
-        ]
+            crate::gpu::uniform_entry(1, compute),
+            crate::gpu::storage_entry(2, true, compute),
+            crate::gpu::texture_array_entry(3, compute),
+            crate::gpu::sampler_entry(4, compute),
+        ];
+        gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("trace scene"),
+            entries: &entries,
+        })
     }
 
-    /// The bind-group entries matching `layout_entries(first)`.
-    pub fn bind_entries(&self, first: u32) -> [wgpu::BindGroupEntry<'_>; 5] {
-        [
-            wgpu::BindGroupEntry { binding: first, resource: wgpu::BindingResource::TextureView(&self.view) },
-            wgpu::BindGroupEntry { binding: first + 1, resource: self.layout_buffer.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: first + 2, resource: self.materials.buffer.as_entire_binding() },
-            wgpu::BindGroupEntry {
-                binding: first + 3,
-                resource: wgpu::BindingResource::TextureView(&self.materials.textures),
-            },
-            wgpu::BindGroupEntry {
-                binding: first + 4,
-                resource: wgpu::BindingResource::Sampler(&self.materials.sampler),
-            },
-        ]
+    /// The scene's bind group (`bind_group_layout`).
+    pub fn bind_group(&self, gpu: &Gpu, layout: &wgpu::BindGroupLayout) -> wgpu::BindGroup {
+        let entries = [
+            wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(&self.view) },
+            wgpu::BindGroupEntry { binding: 1, resource: self.layout_buffer.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 2, resource: self.materials.buffer.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::TextureView(&self.materials.textures) },
+            wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::Sampler(&self.materials.sampler) },
+        ];
+        gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("trace scene"),
+            layout,
+            entries: &entries,
+        })
     }
 }
 
@@ -184,7 +176,6 @@ struct Records {
     triangle_base: u32,
     extra_base: u32,
     uv_base: u32,
-    polygons: usize,
 }
 
 impl Records {
@@ -211,7 +202,6 @@ impl Records {
         // Polygon vertices follow the two extra records of every node.
         let vertex_base = extra_base + 2 * flat.len() as u32;
         let mut vertices = Vec::new();
-        let mut polygons = 0;
         for node in flat {
             let members = &triangles[node.first as usize..(node.first + node.count) as usize];
             let (centre, radius) = bounding_sphere(node, members);
@@ -223,7 +213,6 @@ impl Records {
                     let padded = corners.iter().chain(std::iter::repeat(&last)).take(POLYGON_CORNERS);
                     vertices.extend(padded.map(|c| word(c.as_vec3().to_array(), 0)));
                     data.push(word(normal.as_vec3().to_array(), first));
-                    polygons += 1;
                 }
                 None => data.push([0; 4]),
             }
@@ -231,7 +220,7 @@ impl Records {
         data.extend(vertices);
         let uv_base = data.len() as u32;
         data.extend(uvs);
-        Records { data, triangle_base, extra_base, uv_base, polygons }
+        Records { data, triangle_base, extra_base, uv_base }
     }
 }
 
