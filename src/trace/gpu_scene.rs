@@ -449,13 +449,19 @@ mod tests {
             grid(3, 3).into_iter().enumerate().filter(|(i, _)| i / 2 != 4).map(|(_, t)| t).collect();
         let members: Vec<&SceneTriangle> = ring.iter().collect();
         assert!(planar_polygon(&members).is_none(), "hole");
-        // The square's two triangles, one listed twice, and a third filling the area they leave out.
+        // A triangle listed twice.
         let doubled = [
             triangle([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]),
             triangle([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]),
         ];
         let members: Vec<&SceneTriangle> = doubled.iter().collect();
         assert!(planar_polygon(&members).is_none(), "doubled");
+        // The ring again with a corner square listed twice: the areas add up
+        // to the hull's, and only the edges tell the overlap and the hole.
+        let mut ring_doubled = ring;
+        ring_doubled.extend(grid(3, 3).into_iter().take(2));
+        let members: Vec<&SceneTriangle> = ring_doubled.iter().collect();
+        assert!(planar_polygon(&members).is_none(), "a hole and a doubled square");
     }
 
     #[test]
