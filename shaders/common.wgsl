@@ -100,6 +100,10 @@ struct Shooter {
     _pad: u32,
 }
 
+// A receiver this close to a near shooter's plane, in receiver offsets
+// (half texels), is in contact with it.
+const CONTACT: f32 = 0.1;
+
 // Shooter slots per batch (`bounce::MAX_SHOOTERS`): a near-field
 // receiver's slots are the bits of one u32.
 const MAX_SHOOTERS: u32 = 32u;
@@ -124,8 +128,8 @@ struct BounceParams {
     chunk_count: u32,      // workgroups of MEASURE_CHUNK texels in the measure pass
     atlas_width: u32,      // texels per atlas row (a texel's index is x + y · width)
     cell: u32,             // side of the atlas cell patches are cut from, texels
-    _pad1: u32,
-    _pad2: u32,
+    in_plane: f32,         // a receiver this close to a shooter's plane lies in it, metres (rounding)
+    _pad: u32,
 }
 
 // A shooter patch is split into SUB_CELLS × SUB_CELLS parts of its atlas
@@ -135,11 +139,23 @@ const SUB_CELL_COUNT: u32 = 16u;
 // The sub-cell of its patch a texel lies in: its place in the patch's atlas
 // cell, SUB_CELLS to a side.
 fn sub_cell(texel: Texel, bounce: BounceParams) -> u32 {
-    let x = texel.index % bounce.atlas_width;
-    let y = texel.index / bounce.atlas_width;
-    let cx = (x % bounce.cell) * SUB_CELLS / bounce.cell;
-    let cy = (y % bounce.cell) * SUB_CELLS / bounce.cell;
+    let row_column = quotient_remainder(texel.index, bounce.atlas_width);
+    let x = quotient_remainder(row_column.y, bounce.cell).y;
+    let y = quotient_remainder(row_column.x, bounce.cell).y;
+    let cx = quotient_remainder(x * SUB_CELLS, bounce.cell).x;
+    let cy = quotient_remainder(y * SUB_CELLS, bounce.cell).x;
     return cy * SUB_CELLS + cx;
+}
+
+// (n / d, n % d) for d > 0 and a quotient under 2^22 (an atlas row or
+// column), by a float estimate put right: a CPU driver divides integers
+// by a value it cannot see lane by lane, as slowly as a dozen float
+// operations each.
+fn quotient_remainder(n: u32, d: u32) -> vec2<u32> {
+    var q = i32(floor(f32(n) / f32(d)));
+    let r = i32(n) - q * i32(d);
+    q += select(0, -1, r < 0) + select(0, 1, r >= i32(d));
+    return vec2<u32>(u32(q), u32(i32(n) - q * i32(d)));
 }
 
 // One edge's term of Lambert's contour integral, for corner vectors a, b
@@ -294,7 +310,10 @@ fn hemicube_face_of(local: vec3f) -> u32 {
 // Top-left texel and size of `face` of hemicube `slot` in the depth atlas.
 // A hemicube tile is 3S × S: the top face, then ±t stacked, then ±b stacked.
 fn hemicube_viewport(slot: u32, face: u32, size: f32, tiles_per_row: u32) -> vec4f {
-    let tile = vec2f(f32(slot % tiles_per_row) * 3.0 * size, f32(slot / tiles_per_row) * size);
+    // In floats, exact for slot counts this small: a CPU driver divides
+    // integers lane by lane.
+    let row = floor((f32(slot) + 0.5) / f32(tiles_per_row));
+    let tile = vec2f((f32(slot) - row * f32(tiles_per_row)) * 3.0 * size, row * size);
     let column = f32((face + 1u) / 2u) * size;
     let lower = face != 0u && face % 2u == 0u;
     let corner = tile + vec2f(column, select(0.0, 0.5 * size, lower));

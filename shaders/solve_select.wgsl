@@ -6,7 +6,8 @@
 @group(0) @binding(0) var<uniform> params: BounceParams;
 @group(0) @binding(1) var<storage, read> patches: array<Patch>;
 @group(0) @binding(2) var<storage, read> patch_power: array<vec4f>;
-// 1 for patches already chosen in this batch.
+// Per patch: its slot + 1 once chosen in this batch, else 0 (read by
+// solve_shoot).
 @group(0) @binding(3) var<storage, read_write> chosen: array<u32>;
 @group(0) @binding(4) var<storage, read_write> shooters: array<Shooter>;
 @group(0) @binding(5) var<storage, read_write> stats: BounceStats;
@@ -100,7 +101,7 @@ fn main(@builtin(local_invocation_index) lid: u32) {
                 shooter.half_u = chosen_patch.half_u;
                 shooter.half_v = chosen_patch.half_v;
                 shooter.rect_area = 4.0 * length(cross(chosen_patch.half_u, chosen_patch.half_v));
-                chosen[winner] = 1u;
+                chosen[winner] = slot + 1u;
                 shot += power;
                 count += 1u;
             }

@@ -59,6 +59,11 @@ struct ShooterCells {
 // surface lies on or over it; src/solve/overlaps.rs). Where two surfaces
 // coincide, each receives the place's light but counts for half its area.
 @group(0) @binding(13) var<storage, read> shares: array<f32>;
+// Per patch: its slot + 1 when it shoots in this batch, else 0 (solve_select).
+@group(0) @binding(14) var<storage, read> chosen: array<u32>;
+// Per group of 64 texels (a workgroup of `main`): the slots that may light
+// one of them, a bit each (solve_shooter_cull).
+@group(0) @binding(15) var<storage, read> group_shooters: array<u32>;
 
 // The batch's shooters' scales by slot, as `finish` leaves them: read by
 // `main` as a uniform buffer, for the reason the shooters are one, and
@@ -90,9 +95,6 @@ const MIN_SCALE: f32 = 0.25;
 const MAX_SCALE: f32 = 4.0;
 // Receivers closer than this many patch radii use the exact polygon form factor.
 const NEAR_FIELD: f32 = 4.0;
-// A receiver this close to a near shooter's plane, in receiver offsets
-// (half texels), is in contact with it.
-const CONTACT: f32 = 0.1;
 
 // The direction (shooter's frame, not normalized) through the centre of
 // hemicube texel `xy` of `face`, whose viewport is `view`.
@@ -168,9 +170,10 @@ fn receiver_point(texel: Texel) -> vec3f {
 fn shot_geometry(texel: Texel, s: Shooter, k: u32) -> vec2f {
     let p = texel.position;
     let to_shooter = s.position - p;
-    // Only the shooter's front side emits.
+    // Only the shooter's front side emits; a receiver in its plane (within
+    // rounding, which `solve_shooter_cull` allows for) takes nothing.
     let height = -dot(to_shooter, s.normal);
-    if (height <= 0.0) {
+    if (height <= params.in_plane) {
         return vec2f(0.0);
     }
     let r2 = dot(to_shooter, to_shooter);
@@ -296,23 +299,26 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let texel = texels[i];
-    let own_patch = texel_patch[i];
     var gathered = vec3f(0.0);
-    var shot = false;
     var near_slots = 0u;
-    for (var k = 0u; k < params.shooter_count; k++) {
+    // The texel's own patch, if it shoots now, gives it nothing here (its
+    // unshot light leaves; a curved one lights itself where it is concave,
+    // `near_light`).
+    let chosen_as = chosen[texel_patch[i]];
+    let shot = chosen_as != 0u;
+    let own_slot = select(0u, chosen_as - 1u, shot);
+    // Only the slots that may light the texel's group, in slot order.
+    var slots = group_shooters[i / 64u];
+    if (shot) {
+        slots &= ~(1u << own_slot);
+        if (is_curved(own_slot)) {
+            near_slots = 1u << own_slot;
+        }
+    }
+    while (slots != 0u) {
+        let k = firstTrailingBit(slots);
+        slots &= slots - 1u;
         let s = shooters.items[k];
-        if (s.patch_index == NO_TRIANGLE) {
-            continue;
-        }
-        if (s.patch_index == own_patch) {
-            shot = true;
-            // A curved patch lights itself where it is concave (`near_light`).
-            if (is_curved(k)) {
-                near_slots |= 1u << k;
-            }
-            continue;
-        }
         let g = shot_geometry(texel, s, k);
         if (g.x > 0.0) {
             near_slots |= 1u << k;
@@ -436,6 +442,8 @@ fn slots_needing_scale(lid: u32) -> u32 {
 
 // Slots one measure workgroup sums for.
 const MEASURE_SLOTS: u32 = 8u;
+// Texels one invocation of the measure pass sums (`MEASURE_CHUNK` / 64).
+const MEASURE_TURNS: u32 = MEASURE_CHUNK / 64u;
 
 // Workgroup (chunk, group of MEASURE_SLOTS slots): Σ F_ij A_i / A_j over the
 // chunk's texels, for each of the group's slots whose patch has no scale
@@ -451,19 +459,45 @@ fn measure(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
     }
     var near = array<f32, MEASURE_SLOTS>();
     var far = array<f32, MEASURE_SLOTS>();
+    // The receivers in a slot's near field, by their turn in the chunk:
+    // their exact form factors are summed after the far field, where they
+    // cost the few lanes that have them rather than every pair.
+    var near_turns = array<u32, MEASURE_TURNS>();
+    var near_slots = array<u32, MEASURE_TURNS>();
+    var near_count = 0u;
     let first = group.x * MEASURE_CHUNK;
-    for (var i = first + lid; i < min(first + MEASURE_CHUNK, params.texel_count); i += 64u) {
+    let end = min(first + MEASURE_CHUNK, params.texel_count);
+    for (var turn = 0u; first + lid + turn * 64u < end; turn++) {
+        let i = first + lid + turn * 64u;
         let texel = texels[i];
         let own_patch = texel_patch[i];
         let share = shares[i];
-        for (var left = slots; left != 0u; left &= left - 1u) {
+        var listed = 0u;
+        for (var left = slots & group_shooters[i / 64u]; left != 0u; left &= left - 1u) {
             let k = firstTrailingBit(left);
             let s = shooters.items[k];
             if (own_patch != s.patch_index) {
-                let f = shot_form_factor(texel, s, k) * texel.area * share;
-                near[k - base] += f.x;
-                far[k - base] += f.y;
+                let g = shot_geometry(texel, s, k);
+                if (g.x > 0.0) {
+                    listed |= 1u << k;
+                } else {
+                    far[k - base] += g.y * texel.area * share;
+                }
             }
+        }
+        if (listed != 0u) {
+            near_turns[near_count] = turn;
+            near_slots[near_count] = listed;
+            near_count++;
+        }
+    }
+    for (var n = 0u; n < near_count; n++) {
+        let i = first + lid + near_turns[n] * 64u;
+        let texel = texels[i];
+        let share = shares[i];
+        for (var left = near_slots[n]; left != 0u; left &= left - 1u) {
+            let k = firstTrailingBit(left);
+            near[k - base] += near_form_factor(texel, shooters.items[k], k) * texel.area * share;
         }
     }
     for (var left = slots; left != 0u; left &= left - 1u) {
@@ -524,7 +558,8 @@ fn finish(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_ind
         let view = hemicube_viewport(k, face, params.face_size, params.tiles_per_row);
         let rows = select(size / 2u, size, face == 0u);
         for (var n = lid; n < size * rows; n += 64u) {
-            let xy = vec2<i32>(view.xy) + vec2<i32>(i32(n % size), i32(n / size));
+            let row_column = quotient_remainder(n, size);
+            let xy = vec2<i32>(view.xy) + vec2<i32>(i32(row_column.y), i32(row_column.x));
             let d = hemicube_texel_direction(xy, view, face);
             let r2 = dot(d, d);
             let delta = d.z / (r2 * r2);

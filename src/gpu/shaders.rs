@@ -28,6 +28,8 @@ pub enum Shader {
     SolveHemicube,
     /// Lists the casters each hemicube face of a batch can see.
     SolveHemicubeCull,
+    /// Which shooters of a batch each group of receiver texels can take light from.
+    SolveShooterCull,
     /// Every texel gathers the batch's shots.
     SolveShoot,
 }
@@ -42,6 +44,7 @@ impl Shader {
         Shader::SolveSelect,
         Shader::SolveHemicube,
         Shader::SolveHemicubeCull,
+        Shader::SolveShooterCull,
         Shader::SolveShoot,
     ];
 
@@ -56,6 +59,7 @@ impl Shader {
             Shader::SolveSelect => "solve_select",
             Shader::SolveHemicube => "solve_hemicube",
             Shader::SolveHemicubeCull => "solve_hemicube_cull",
+            Shader::SolveShooterCull => "solve_shooter_cull",
             Shader::SolveShoot => "solve_shoot",
         }
     }
@@ -70,6 +74,7 @@ impl Shader {
             Shader::SolveSelect => include_str!("../../shaders/solve_select.wgsl"),
             Shader::SolveHemicube => include_str!("../../shaders/solve_hemicube.wgsl"),
             Shader::SolveHemicubeCull => include_str!("../../shaders/solve_hemicube_cull.wgsl"),
+            Shader::SolveShooterCull => include_str!("../../shaders/solve_shooter_cull.wgsl"),
             Shader::SolveShoot => include_str!("../../shaders/solve_shoot.wgsl"),
         }
     }

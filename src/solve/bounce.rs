@@ -6,7 +6,8 @@
 //! (`solve_patch_power`), pick the K largest (`solve_select`), list the
 //! casters each of their hemicube faces can see (`hemicube_cull`), render a
 //! hemicube depth map from each (`solve_hemicube`), and let every texel
-//! gather from the K shooters with the seed's bounded form factor
+//! gather from those of the K shooters that may light its group of 64
+//! (`shooter_cull`) with the seed's bounded form factor
 //! (`solve_shoot`: the far field for every texel, then the exact near field
 //! for the few texels next to a shooter, which `main` lists and
 //! `near_dispatch` sizes that pass for, on the GPU). Only a 64-byte summary
@@ -50,6 +51,7 @@ use serde::{Deserialize, Serialize};
 use super::casters::{Casters, Topology};
 use super::hemicube_cull::HemicubeCull;
 use super::patches::Patches;
+use super::shooter_cull::{self, ShooterCull};
 use crate::gpu::{self, Gpu, Shader, read_buffer};
 use crate::scene::Scene;
 use crate::texelize::{Texel, TexelSet};
@@ -205,7 +207,7 @@ pub struct BounceStats {
 /// Mirrors `BounceParams` in common.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
-struct BounceParams {
+pub(super) struct BounceParams {
     texel_count: u32,
     patch_count: u32,
     shooter_count: u32,
@@ -219,7 +221,17 @@ struct BounceParams {
     chunk_count: u32,
     atlas_width: u32,
     cell: u32,
-    _pad: [u32; 2],
+    /// A receiver this close to a shooter's plane lies in it, metres: twice
+    /// the rounding `shooter_cull` allows for.
+    in_plane: f32,
+    _pad: u32,
+}
+
+impl BounceParams {
+    /// The same for a dispatch of `row_stride` invocations per row.
+    pub(super) fn with_row_stride(self, row_stride: u32) -> BounceParams {
+        BounceParams { row_stride, ..self }
+    }
 }
 
 /// Mirrors `Shooter` in common.wgsl.
@@ -424,7 +436,8 @@ pub fn run(
         chunk_count: (texels.texels.len() as u32).div_ceil(MEASURE_CHUNK).max(1),
         atlas_width: texels.width,
         cell: patches.cell,
-        _pad: [0; 2],
+        in_plane: shooter_cull::in_plane(&texels.texels),
+        _pad: 0,
     };
     let patch_params = BounceParams { row_stride: patch_groups_x * 64, ..params };
 
@@ -433,6 +446,7 @@ pub fn run(
         Inputs { texels: gpu_texels, shares, patches, patch_coverage: &patch_coverage, unshot: &unshot, lightmap };
     let resources = resources(gpu, scene, &inputs, params, face, tiles_per_row, tile_rows);
     let (casters, faces) = (&resources.casters, &resources.hemicube_faces);
+    let shooter_cull = ShooterCull::new(gpu, &gpu_texels.texels, params, &resources.shooters);
     let cull = HemicubeCull::new(gpu, casters, faces, 5 * shooter_count, params.near, options.face_list_bytes);
     // Without a direct pass (emitters only) the share is unknown: normalize.
     let normalized = initial_closure.is_none_or(|f| f * luminance(mean_albedo) >= NORMALIZE_FROM);
@@ -442,7 +456,7 @@ pub fn run(
         gpu.queue.write_buffer(&resources.patch_scale, 0, bytemuck::cast_slice(&ones));
     }
     let patch_params_buffer = gpu.uniform_buffer("solve_patch_power params", &patch_params);
-    let pipelines = pipelines(gpu, &resources, &patch_params_buffer);
+    let pipelines = pipelines(gpu, &resources, &patch_params_buffer, &shooter_cull.group_shooters);
 
     let max_shots = options.max_shots.unwrap_or(64 * patches.patches.len() as u64);
     let mut shots = 0u64;
@@ -515,6 +529,7 @@ pub fn run(
         render_hemicubes(&mut encoder, &pipelines, &resources, cull.as_ref(), shooter_count, face, tiles_per_row);
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
+            shooter_cull.record(&mut pass);
             pass.set_bind_group(0, &pipelines.shoot.1, &[]);
             if normalized {
                 pass.set_pipeline(&pipelines.measure);
@@ -776,7 +791,7 @@ fn resources(
     }
 }
 
-fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines {
+fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer, group_shooters: &wgpu::Buffer) -> Pipelines {
     let compute = wgpu::ShaderStages::COMPUTE;
     let layout = |label: &str, entries: &[wgpu::BindGroupLayoutEntry]| {
         gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries })
@@ -901,6 +916,9 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             // 11: the shooters' light by sub-cells, 13: each texel's share of the area that bounces
             gpu::uniform_entry(11, compute),
             gpu::storage_entry(13, true, compute),
+            // 14: each patch's slot + 1 in the batch, 15: each texel group's slots (solve_shooter_cull)
+            gpu::storage_entry(14, true, compute),
+            gpu::storage_entry(15, true, compute),
         ],
     );
     let shoot_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -919,6 +937,8 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> Pipelines
             wgpu::BindGroupEntry { binding: 10, resource: r.near_list.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 11, resource: r.shooter_cells.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 13, resource: r.shares.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 14, resource: r.chosen.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 15, resource: group_shooters.as_entire_binding() },
         ],
     });
 

@@ -17,6 +17,7 @@ mod occluders;
 mod overlaps;
 pub mod patches;
 pub mod punctual;
+mod shooter_cull;
 pub mod supersample;
 mod surfaces;
 

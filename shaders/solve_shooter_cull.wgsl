@@ -1,0 +1,68 @@
+// Which of a batch's shooters each group of 64 receiver texels (one
+// workgroup of `solve_shoot`'s `main`) can take light from, as a bit per
+// slot. A CPU driver runs every branch of a shader for all lanes, so a pair
+// that gets nothing costs as much as one that gets light; a loop over the
+// set bits alone runs as many times as the group has shooters to take from.
+// A floor takes nothing from its own plane's patches, nor the top of a ball
+// from the floor under it.
+//
+// The test is conservative against `solve_shoot`'s `shot_geometry` (the
+// group's bounding box and cone of normals hold every texel's, widened by
+// `margin` for rounding): a slot left out gives none of its texels light.
+
+// A group's texels: the box of their positions, the cone of their shading
+// normals (cos_spread −1: any direction), and the rounding allowance in
+// metres (half of `in_plane`). Mirrors `shooter_cull::ReceiverGroup`.
+struct ReceiverGroup {
+    lo: vec3f,
+    cos_spread: f32,
+    hi: vec3f,
+    sin_spread: f32,
+    axis: vec3f,
+    margin: f32,
+}
+
+@group(0) @binding(0) var<uniform> params: BounceParams;
+@group(0) @binding(1) var<uniform> shooters: ShooterBatch;
+@group(0) @binding(2) var<storage, read> groups: array<ReceiverGroup>;
+// Per group: bit k set when slot k may light one of its texels (written).
+@group(0) @binding(3) var<storage, read_write> group_shooters: array<u32>;
+
+// Whether shooter `s` can light any texel of group `g`: one must lie in
+// front of its plane (by more than `params.in_plane`), and face its centroid.
+fn may_light(g: ReceiverGroup, s: Shooter) -> bool {
+    let centre = 0.5 * (g.lo + g.hi);
+    let half = 0.5 * (g.hi - g.lo);
+    let highest = dot(centre - s.position, s.normal) + dot(half, abs(s.normal));
+    if (highest <= params.in_plane - g.margin) {
+        return false;
+    }
+    // The largest dot(n, s.position − p) over the cone's normals n and the
+    // box's points p: over n for the centre, plus the box's half diagonal.
+    let v = s.position - centre;
+    let distance = length(v);
+    let cos_v = dot(g.axis, v) / max(distance, 1e-30);
+    var toward = distance;
+    if (cos_v < g.cos_spread) {
+        let sin_v = sqrt(max(1.0 - cos_v * cos_v, 0.0));
+        toward = distance * (cos_v * g.cos_spread + sin_v * g.sin_spread);
+    }
+    return toward + length(half) + g.margin > 0.0;
+}
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    let g = id.x + id.y * params.row_stride;
+    if (g >= arrayLength(&groups)) {
+        return;
+    }
+    let group = groups[g];
+    var mask = 0u;
+    for (var k = 0u; k < params.shooter_count; k++) {
+        let s = shooters.items[k];
+        if (s.patch_index != NO_TRIANGLE && may_light(group, s)) {
+            mask |= 1u << k;
+        }
+    }
+    group_shooters[g] = mask;
+}

@@ -1,0 +1,118 @@
+//! Which of a batch's shooters each group of 64 receiver texels can take
+//! light from (`solve_shooter_cull`), so that the gather (`solve_shoot`'s
+//! `main`, one workgroup a group) loops over those alone: on a CPU driver a
+//! pair that gets no light costs as much as one that does, and in an open
+//! scene most pairs are a floor's texels and a patch of the same floor.
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+
+use super::bounce::BounceParams;
+use crate::gpu::{self, Gpu, Shader};
+use crate::texelize::Texel;
+
+/// Texels per group: `solve_shoot`'s workgroup size.
+pub const GROUP_TEXELS: usize = 64;
+
+/// Relative rounding allowance of the test: the shader's sums and the
+/// gather's each round at about 1e-7 of the coordinates' magnitude.
+const ROUNDING: f32 = 1e-5;
+/// Widening of each group's cone of normals, radians, for normals not
+/// quite unit length.
+const SPREAD_MARGIN: f32 = 1e-3;
+
+/// Mirrors `ReceiverGroup` in solve_shooter_cull.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable, Debug, PartialEq)]
+pub struct ReceiverGroup {
+    lo: [f32; 3],
+    cos_spread: f32,
+    hi: [f32; 3],
+    sin_spread: f32,
+    axis: [f32; 3],
+    margin: f32,
+}
+
+pub struct ShooterCull {
+    pipeline: wgpu::ComputePipeline,
+    group: wgpu::BindGroup,
+    dispatch: (u32, u32),
+    /// Per group: a bit per shooter slot that may light it.
+    pub group_shooters: wgpu::Buffer,
+}
+
+impl ShooterCull {
+    /// For the bounce pass's `params` and its batch of `shooters` (a
+    /// `ShooterBatch` uniform buffer).
+    pub fn new(gpu: &Gpu, texels: &[Texel], params: BounceParams, shooters: &wgpu::Buffer) -> ShooterCull {
+        let groups = receiver_groups(texels);
+        let dispatch = gpu.dispatch_size(groups.len() as u32, 64);
+        let params = gpu.uniform_buffer("solve_shooter_cull params", &params.with_row_stride(dispatch.0 * 64));
+        let none = wgpu::BufferUsages::empty();
+        let bounds = gpu.storage_buffer("solve_shooter_cull groups", &groups, none);
+        let group_shooters = gpu.zeroed_storage_buffer::<u32>("solve_shooter_cull masks", groups.len(), none);
+        let compute = wgpu::ShaderStages::COMPUTE;
+        let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("solve_shooter_cull"),
+            entries: &[
+                // 0: BounceParams (shooter count, receiver offset; row stride of this dispatch)
+                gpu::uniform_entry(0, compute),
+                // 1: the batch's shooters
+                gpu::uniform_entry(1, compute),
+                // 2: each group's bounds, 3: each group's slots (written)
+                gpu::storage_entry(2, true, compute),
+                gpu::storage_entry(3, false, compute),
+            ],
+        });
+        let group =
+            gpu::bind_buffers(gpu, "solve_shooter_cull", &layout, &[&params, shooters, &bounds, &group_shooters]);
+        ShooterCull {
+            pipeline: gpu.compute_pipeline(Shader::SolveShooterCull, "main", &[&layout]),
+            group,
+            dispatch,
+            group_shooters,
+        }
+    }
+
+    /// Writes each group's slots for the batch's shooters.
+    pub fn record(&self, pass: &mut wgpu::ComputePass) {
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &self.group, &[]);
+        pass.dispatch_workgroups(self.dispatch.0, self.dispatch.1, 1);
+    }
+}
+
+/// How close to a shooter's plane a receiver lies in it
+/// (`BounceParams::in_plane`): twice what the test allows for rounding.
+pub fn in_plane(texels: &[Texel]) -> f32 {
+    2.0 * rounding(texels)
+}
+
+/// The rounding allowance, metres: `ROUNDING` of the largest coordinate.
+fn rounding(texels: &[Texel]) -> f32 {
+    ROUNDING * texels.iter().map(|t| Vec3::from(t.position).abs().max_element()).fold(0.0f32, f32::max)
+}
+
+/// The bounds of each run of `GROUP_TEXELS` texels, in order.
+pub fn receiver_groups(texels: &[Texel]) -> Vec<ReceiverGroup> {
+    let margin = rounding(texels);
+    texels.chunks(GROUP_TEXELS).map(|chunk| group_bounds(chunk, margin)).collect()
+}
+
+fn group_bounds(texels: &[Texel], margin: f32) -> ReceiverGroup {
+    let positions = texels.iter().map(|t| Vec3::from(t.position));
+    let lo = positions.clone().fold(Vec3::INFINITY, Vec3::min);
+    let hi = positions.fold(Vec3::NEG_INFINITY, Vec3::max);
+    let normals: Vec<Vec3> = texels.iter().map(|t| Vec3::from(t.normal).normalize_or_zero()).collect();
+    let sum: Vec3 = normals.iter().sum();
+    let axis = sum.normalize_or_zero();
+    let widest = normals.iter().map(|n| n.dot(axis).clamp(-1.0, 1.0).acos()).fold(0.0f32, f32::max);
+    let spread = widest + SPREAD_MARGIN;
+    // A cone past a half turn (or normals that cancel) bounds nothing.
+    let (cos_spread, sin_spread) = if axis == Vec3::ZERO || normals.contains(&Vec3::ZERO) || spread >= 3.0 {
+        (-1.0, 0.0)
+    } else {
+        (spread.cos(), spread.sin())
+    };
+    ReceiverGroup { lo: lo.into(), cos_spread, hi: hi.into(), sin_spread, axis: axis.into(), margin }
+}
