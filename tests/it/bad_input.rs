@@ -1072,3 +1072,53 @@ fn a_scene_over_the_triangle_budget_is_refused_before_it_is_read() {
     let output = case.run(&["scene.glb", "--env", env.to_str().unwrap(), "--max-triangles", "2240"]);
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
 }
+
+/// Runs `command` with at most `bytes` of data memory (RLIMIT_DATA: heap
+/// and private writable mappings): its exit code, `None` when it died of a
+/// signal (an allocation refused aborts the process).
+fn exit_within_data_limit(mut command: Command, bytes: u64) -> Option<i32> {
+    use std::os::unix::process::CommandExt;
+    let limit = libc::rlimit { rlim_cur: bytes as libc::rlim_t, rlim_max: bytes as libc::rlim_t };
+    // SAFETY: setrlimit is async-signal-safe, as code between fork and exec must be.
+    unsafe {
+        command.pre_exec(move || match libc::setrlimit(libc::RLIMIT_DATA, &limit) {
+            0 => Ok(()),
+            _ => Err(std::io::Error::last_os_error()),
+        });
+    }
+    // Its table, one line per missing mesh, would fill a pipe nobody reads.
+    let status = command.stdout(std::process::Stdio::null()).stderr(std::process::Stdio::null()).status();
+    status.expect("bake runs").code()
+}
+
+#[test]
+fn check_reads_a_large_golden_report_in_bounded_memory() {
+    let out = tempfile::tempdir().unwrap();
+    crate::common::bake_file(
+        &fixture("sphere_on_ground.glb"),
+        out.path(),
+        &["--max-atlas-size", "32", "--lights", "16"],
+    );
+    let mut golden: Value = serde_json::from_slice(&std::fs::read(out.path().join("report.json")).unwrap()).unwrap();
+    // About 50 MB: 20 000 meshes the bake does not have, and a long convergence trace.
+    let scene = &mut golden["scenes"][0];
+    let mesh = scene["energy"][0].clone();
+    let meshes = (0..20_000).map(|i| {
+        let mut mesh = mesh.clone();
+        mesh["node"] = json!(1000 + i);
+        mesh
+    });
+    scene["energy"].as_array_mut().unwrap().extend(meshes);
+    let trace = scene["bounce"]["trace"].as_array_mut().expect("the fixture bounces light");
+    let point = trace[0].clone();
+    trace.extend(std::iter::repeat_n(point, 100_000));
+    let bytes = serde_json::to_vec_pretty(&golden).unwrap();
+    drop(golden);
+    std::fs::write(out.path().join("golden.json"), &bytes).unwrap();
+    let mut command = Command::new(env!("CARGO_BIN_EXE_bake"));
+    command.current_dir(out.path()).args(["check", "report.json", "--against", "golden.json"]);
+    // Read whole and parsed into a JSON tree, it took 4 times the file (1.2 GB for 285 MB);
+    // streamed, it needs less than the file's size.
+    let code = exit_within_data_limit(command, bytes.len() as u64);
+    assert_eq!(code, Some(1), "a check of 20 000 missing meshes within {} bytes of memory", bytes.len());
+}
