@@ -240,8 +240,12 @@ impl Args {
         if !(self.tolerance.is_finite() && self.tolerance >= 0.0 && self.tolerance < 1.0) {
             bail!("--tolerance must be a fraction in [0, 1), not {}", self.tolerance);
         }
-        if !(self.gpu_timeout.is_finite() && self.gpu_timeout >= 0.0) {
-            bail!("--gpu-timeout must be a number of seconds ≥ 0, not {}", self.gpu_timeout);
+        // Past about 1.8e19 s a Duration cannot hold it; 1e9 s is 31 years.
+        if !(0.0..=1e9).contains(&self.gpu_timeout) {
+            bail!(
+                "--gpu-timeout must be a number of seconds in [0, 1e9] (0: wait forever), not {}",
+                crate::limits::figure(self.gpu_timeout)
+            );
         }
         if let Some(seconds) = self.max_time
             && !(seconds.is_finite() && seconds >= 0.0)
@@ -454,6 +458,7 @@ mod tests {
             &["a.glb", "--max-shots", "-1"],
             &["a.glb", "--reference", "0"],
             &["a.glb", "--max-triangles", "0"],
+            &["a.glb", "--gpu-timeout", "1e300"],
             &[],
         ] {
             assert!(parse(bad).is_err(), "{bad:?} was accepted");

@@ -42,9 +42,19 @@ pub fn light_in_range(value: f64) -> bool {
     (0.0..=MAX_LIGHT).contains(&value)
 }
 
-/// `value` for a message: plain between 10⁻³ and 10⁶, else in scientific notation (`1.500e38`).
+/// `value` for a message: plain between 10⁻³ and 10⁶, else in scientific
+/// notation to four digits, trailing zeros dropped (`1.5e38`, `1e300`).
 pub fn figure(value: f64) -> String {
-    if value == 0.0 || (1e-3..1e6).contains(&value.abs()) { format!("{value}") } else { format!("{value:.3e}") }
+    if value == 0.0 || (1e-3..1e6).contains(&value.abs()) {
+        return format!("{value}");
+    }
+    let text = format!("{value:.3e}");
+    match text.split_once('e') {
+        Some((mantissa, exponent)) if mantissa.contains('.') => {
+            format!("{}e{exponent}", mantissa.trim_end_matches('0').trim_end_matches('.'))
+        }
+        _ => text,
+    }
 }
 
 #[cfg(test)]
@@ -55,8 +65,11 @@ mod tests {
     fn figures_read_plainly_or_in_scientific_notation() {
         assert_eq!(figure(1.0), "1");
         assert_eq!(figure(-5.0), "-5");
-        assert_eq!(figure(1e38), "1.000e38");
-        assert_eq!(figure(f64::from(1e38f32)), "1.000e38");
+        assert_eq!(figure(1e38), "1e38");
+        assert_eq!(figure(f64::from(1e38f32)), "1e38");
+        assert_eq!(figure(1.4953815e38), "1.495e38");
+        assert_eq!(figure(-5e30), "-5e30");
+        assert_eq!(figure(2.5e-7), "2.5e-7");
         assert_eq!(figure(f64::NAN), "NaN");
     }
 }
