@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use crate::environment::LightMode;
 use crate::export::ExportOptions;
+use crate::import::ImportOptions;
 use crate::progress::LogMode;
 use crate::report::ReportOptions;
 use crate::solve::SolveOptions;
@@ -55,6 +56,8 @@ pub struct Config {
     /// Equirectangular environment (EXR or Radiance .hdr); `None` bakes emitters only.
     pub environment: Option<PathBuf>,
     pub environment_options: EnvironmentOptions,
+    /// What one input may ask of the run (`--max-triangles`).
+    pub import: ImportOptions,
     /// Output folder (created if missing; files in it are replaced only on success).
     pub output: PathBuf,
     /// Substring of the adapter name to use (`--adapter`).

@@ -20,24 +20,56 @@ use glam::{DMat3, DMat4, DVec3};
 use gltf::mesh::Mode;
 
 use crate::asset::{SourceAsset, accessor, instancing, ktx2, morph};
-use crate::repeats;
 use crate::scene::{
     AlphaMode, LightKind, LinearImage, Material, PunctualLight, Scene, ScenePrimitive, TextureRef, choose_origin,
 };
+use crate::{limits, repeats};
 
-/// Loads `path` (`.gltf` or `.glb`) into a `Scene`. Errors name the file.
+/// What one input may ask of a run.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ImportOptions {
+    /// The most triangles the scene may hold once node and GPU instances
+    /// are expanded (`--max-triangles`); more is refused before they are read.
+    pub max_triangles: u64,
+}
+
+impl Default for ImportOptions {
+    fn default() -> Self {
+        ImportOptions { max_triangles: limits::DEFAULT_MAX_TRIANGLES }
+    }
+}
+
+/// Loads `path` (`.gltf` or `.glb`) into a `Scene` with the default budget. Errors name the file.
 pub fn load(path: &Path) -> Result<Scene> {
-    let run = || -> Result<Scene> { from_asset(SourceAsset::load(path)?) };
+    load_with(path, &ImportOptions::default())
+}
+
+/// Loads `path` into a `Scene` within `options`' budget. Errors name the file.
+pub fn load_with(path: &Path, options: &ImportOptions) -> Result<Scene> {
+    let run = || -> Result<Scene> { from_asset_with(SourceAsset::load(path)?, options) };
     run().with_context(|| format!("input '{}'", path.display()))
 }
 
-/// Builds a `Scene` from an already loaded asset.
+/// Builds a `Scene` from an already loaded asset, with the default budget.
 pub fn from_asset(source: SourceAsset) -> Result<Scene> {
+    from_asset_with(source, &ImportOptions::default())
+}
+
+/// Builds a `Scene` from an already loaded asset within `options`' budget.
+pub fn from_asset_with(source: SourceAsset, options: &ImportOptions) -> Result<Scene> {
     let document = &source.document;
     let gltf_scene = document
         .default_scene()
         .or_else(|| document.scenes().next())
         .ok_or_else(|| anyhow!("the file has no scene to bake"))?;
+    let triangles = drawn_triangles(&source.json, &gltf_scene);
+    if triangles > options.max_triangles {
+        bail!(
+            "the scene draws {triangles} triangles (node and GPU instances expanded), more than the budget of {} \
+             (--max-triangles): raise --max-triangles to bake it",
+            options.max_triangles
+        );
+    }
 
     let mut notices = Vec::new();
     let materials: Vec<Material> = document.materials().map(|m| material(&source.json, m)).collect();
@@ -112,6 +144,7 @@ pub fn from_asset(source: SourceAsset) -> Result<Scene> {
     let mut used: Vec<usize> = primitives.iter().filter_map(|p| p.material).collect();
     used.sort();
     used.dedup();
+    check_emission(&materials, &used)?;
     notices.extend(material_notices(&source, &materials, &used));
     // The images of the materials a baked file draws with too, for what shows it.
     let mut shown: Vec<usize> =
@@ -141,6 +174,13 @@ fn punctual_light(
     let intensity = DVec3::from(light.color().map(f64::from)) * light.intensity() as f64;
     if !intensity.is_finite() || intensity.min_element() < 0.0 {
         bail!("{what}: colour × intensity {intensity} is negative or not finite");
+    }
+    if intensity.max_element() > limits::MAX_LIGHT {
+        bail!(
+            "{what}: colour × intensity {} is more than the {:.0e} bake accepts (f32 headroom, README 'Bad input')",
+            limits::figure(intensity.max_element()),
+            limits::MAX_LIGHT
+        );
     }
     let range = light.range().map(f64::from);
     if let Some(range) = range.filter(|r| !(r.is_finite() && *r > 0.0)) {
@@ -182,6 +222,49 @@ fn punctual_light(
     }))
 }
 
+/// The triangles `scene` draws once node and GPU instances are expanded,
+/// from the accessors' declared counts: known before anything is read, so
+/// a small file drawing one mesh from thousands of nodes is refused at once.
+fn drawn_triangles(json: &serde_json::Value, scene: &gltf::Scene) -> u64 {
+    let mut total = 0u64;
+    let mut stack: Vec<gltf::Node> = scene.nodes().collect();
+    // The walk that reads the scene refuses a cycle; this one only stops.
+    let mut visits = json["nodes"].as_array().map_or(0, Vec::len) * 4 + 16;
+    while let Some(node) = stack.pop() {
+        visits = visits.saturating_sub(1);
+        if visits == 0 {
+            break;
+        }
+        if let Some(mesh) = node.mesh().filter(|_| node.skin().is_none()) {
+            let copies = declared_instances(json, node.index());
+            total = total.saturating_add(mesh_triangles(&mesh).saturating_mul(copies));
+        }
+        stack.extend(node.children());
+    }
+    total
+}
+
+/// The triangles one drawing of `mesh` holds, by the declared counts.
+fn mesh_triangles(mesh: &gltf::Mesh) -> u64 {
+    let primitive_triangles = |p: gltf::Primitive| {
+        let drawn = p.indices().or_else(|| p.get(&gltf::Semantic::Positions)).map_or(0, |a| a.count() as u64);
+        match p.mode() {
+            Mode::Triangles => drawn / 3,
+            Mode::TriangleStrip | Mode::TriangleFan => drawn.saturating_sub(2),
+            _ => 0,
+        }
+    };
+    mesh.primitives().map(primitive_triangles).fold(0, u64::saturating_add)
+}
+
+/// How many GPU instances (EXT_mesh_gpu_instancing) node `node` declares; 1 without the extension.
+fn declared_instances(json: &serde_json::Value, node: usize) -> u64 {
+    let pointer = format!("/nodes/{node}/extensions/{}/attributes", instancing::EXTENSION);
+    let Some(attributes) = json.pointer(&pointer).and_then(serde_json::Value::as_object) else { return 1 };
+    let count = |a: &serde_json::Value| json.pointer(&format!("/accessors/{}/count", a.as_u64()?))?.as_u64();
+    attributes.values().find_map(count).unwrap_or(1)
+}
+
 fn describe(node: &gltf::Node, mesh: &gltf::Mesh, instance: Option<usize>) -> String {
     let node_name = node.name().map(|n| format!(" '{n}'")).unwrap_or_default();
     let mesh_name = mesh.name().map(|n| format!(" '{n}'")).unwrap_or_default();
@@ -200,6 +283,7 @@ struct Gathered {
 /// position relative to it in f32, and finds each primitive's repeated
 /// triangles (with a notice).
 fn finish_primitives(gathered: Vec<Gathered>, notices: &mut Vec<String>) -> Result<([f64; 3], Vec<ScenePrimitive>)> {
+    check_extent(&gathered)?;
     let mut points = gathered.iter().flat_map(|g| g.world.iter().copied());
     let first = points.next().unwrap_or(DVec3::ZERO);
     let (lo, hi) = points.fold((first, first), |(lo, hi), p| (lo.min(p), hi.max(p)));
@@ -227,6 +311,61 @@ fn finish_primitives(gathered: Vec<Gathered>, notices: &mut Vec<String>) -> Resu
         bail!("no triangle has any area (the corners of each coincide or lie on one line): nothing to lightmap");
     }
     Ok((origin.to_array(), primitives))
+}
+
+/// Refuses a scene longer than [`limits::MAX_SCENE_EXTENT`] along a world
+/// axis (a stray vertex, a node scaled by 10³⁰), naming the vertices at
+/// both ends: its areas and distances would overflow f32 in the solve.
+fn check_extent(gathered: &[Gathered]) -> Result<()> {
+    for (axis, name) in ["x", "y", "z"].into_iter().enumerate() {
+        // (coordinate, primitive, vertex) of the lowest and highest vertex along `axis`.
+        let mut low = (f64::INFINITY, 0, 0);
+        let mut high = (f64::NEG_INFINITY, 0, 0);
+        for (g, gathered) in gathered.iter().enumerate() {
+            for (v, p) in gathered.world.iter().enumerate() {
+                if p[axis] < low.0 {
+                    low = (p[axis], g, v);
+                }
+                if p[axis] > high.0 {
+                    high = (p[axis], g, v);
+                }
+            }
+        }
+        let extent = high.0 - low.0;
+        if extent > limits::MAX_SCENE_EXTENT {
+            bail!(
+                "the scene spans {} m along {name}, more than the {:.0e} m bake accepts (f32 headroom, \
+                 README 'Bad input'): from vertex {} of {} at {name} = {} to vertex {} of {} at {name} = {}",
+                limits::figure(extent),
+                limits::MAX_SCENE_EXTENT,
+                low.2,
+                gathered[low.1].what,
+                limits::figure(low.0),
+                high.2,
+                gathered[high.1].what,
+                limits::figure(high.0)
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Refuses a used material whose emission (factor × KHR_materials_emissive_strength)
+/// is negative, not finite or over [`limits::MAX_LIGHT`], naming it.
+fn check_emission(materials: &[Material], used: &[usize]) -> Result<()> {
+    for &m in used {
+        let material = &materials[m];
+        if let Some(&bad) = material.emission.iter().find(|&&e| !limits::light_in_range(f64::from(e))) {
+            bail!(
+                "material {m} '{}': emission (emissiveFactor × KHR_materials_emissive_strength) {} is not a \
+                 radiance bake accepts: finite, ≥ 0 and at most {:.0e} (README 'Bad input')",
+                material.name.as_deref().unwrap_or("unnamed"),
+                limits::figure(f64::from(bad)),
+                limits::MAX_LIGHT
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Whether any triangle of `primitive` has a non-zero area in f32 positions.

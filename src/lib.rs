@@ -18,6 +18,7 @@ pub mod files;
 pub mod fixtures;
 pub mod gpu;
 pub mod import;
+pub mod limits;
 pub mod output;
 pub mod plot;
 pub mod progress;
@@ -267,6 +268,7 @@ fn existing_uv1(scene: &Scene, meshes: &[unwrap::MeshInput], options: &unwrap::U
 pub fn load_environment(path: &Path, options: &EnvironmentOptions) -> Result<(LightSet, EnvironmentReport)> {
     let start = Instant::now();
     let loaded = EnvironmentMap::load(path, &environment::EnvLoadOptions { clamp_nonfinite: options.clamp_nonfinite })?;
+    check_radiance(path, &loaded.map, options.intensity)?;
     let lights = LightSet::extract(&loaded.map, options.lights, options.rotation_degrees, options.intensity);
     let mut notices = loaded.notices;
     if lights.lights.is_empty() {
@@ -290,6 +292,29 @@ pub fn load_environment(path: &Path, options: &EnvironmentOptions) -> Result<(Li
         notices,
     };
     Ok((lights, report))
+}
+
+/// Refuses an environment whose brightest texel, scaled by
+/// `--env-intensity`, is more radiance than [`limits::MAX_LIGHT`], naming
+/// the texel: the light set and the solve would overflow f32.
+fn check_radiance(path: &Path, map: &EnvironmentMap, intensity: f32) -> Result<()> {
+    let Some((index, value)) = map.brightest() else { return Ok(()) };
+    let radiance = f64::from(value) * f64::from(intensity);
+    if radiance <= limits::MAX_LIGHT {
+        return Ok(());
+    }
+    let (col, row) = (index % map.width as usize, index / map.width as usize);
+    let scaled = match intensity {
+        1.0 => String::new(),
+        _ => format!(" × --env-intensity {} = {}", limits::figure(intensity.into()), limits::figure(radiance)),
+    };
+    let message = format!(
+        "texel (col,row) ({col},{row}) is {}{scaled}, more radiance than the {:.0e} bake accepts (f32 \
+         headroom, README 'Bad input')",
+        limits::figure(value.into()),
+        limits::MAX_LIGHT
+    );
+    Err(environment::EnvLoadError { path: path.to_path_buf(), message }.into())
 }
 
 /// Cheap checks before any GPU work: every input and the environment are
@@ -348,7 +373,7 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
     for input in &config.inputs {
         let mut stages = Vec::new();
         let scene = stage(gpu, progress, &mut stages, &input_stem(input), "import", |_| {
-            let scene = import::load(input)?;
+            let scene = import::load_with(input, &config.import)?;
             let summary = format!("{} primitives, {} triangles", scene.primitives.len(), scene.triangle_count());
             Ok((scene, summary))
         })?;

@@ -5,8 +5,15 @@
 //! never a panic, and never an allocation out of proportion to the input.
 //! Every crash it found is kept below as a named regression test.
 //!
+//! The same holds for the other readers of untrusted files: the
+//! environment (`.exr` and `.hdr`, through `load_environment`, the path
+//! `--env` takes) and `bake check`'s report JSON and lightmap EXR (through
+//! `read_report` and the checks run on it, and `lightmap_violations`),
+//! mutated the same ways from small valid seeds.
+//!
 //! The case counts keep the whole file to a few seconds; raise them with
-//! PROPTEST_CASES=N for a longer run.
+//! BAKE_FUZZ_ITERATIONS=N (cases per test; PROPTEST_CASES also works) for a
+//! longer run.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::path::Path;
@@ -172,15 +179,27 @@ fn edit() -> impl Strategy<Value = Edit> {
 /// Applies `edits` to a fixture's JSON and packs it again with its own BIN.
 fn edited(name: &str, edits: &[Edit]) -> Vec<u8> {
     let (mut json, bin) = parts(name);
+    apply(&mut json, edits);
+    glb(&json, &bin)
+}
+
+/// Applies `edits` to `json`: numbers set or shifted, members removed, accessor types changed.
+fn apply(json: &mut Value, edits: &[Edit]) {
     for edit in edits {
         let (mut numbers, mut members) = (Vec::new(), Vec::new());
-        pointers(&json, String::new(), &mut numbers, &mut members);
+        pointers(json, String::new(), &mut numbers, &mut members);
         match edit {
             Edit::Set(i, value) => {
+                if numbers.is_empty() {
+                    continue;
+                }
                 let pointer: &String = i.get(&numbers);
                 *json.pointer_mut(pointer).unwrap() = value.clone();
             }
             Edit::Add(i, delta) => {
+                if numbers.is_empty() {
+                    continue;
+                }
                 let pointer: &String = i.get(&numbers);
                 let target = json.pointer_mut(pointer).unwrap();
                 *target = match (target.as_i64(), target.as_f64()) {
@@ -190,6 +209,9 @@ fn edited(name: &str, edits: &[Edit]) -> Vec<u8> {
                 };
             }
             Edit::Remove(i) => {
+                if members.is_empty() {
+                    continue;
+                }
                 let pointer: String = i.get(members.as_slice()).clone();
                 let (parent, key) = pointer.rsplit_once('/').unwrap();
                 let key = key.replace("~1", "/").replace("~0", "~");
@@ -203,13 +225,13 @@ fn edited(name: &str, edits: &[Edit]) -> Vec<u8> {
             }
         }
     }
-    glb(&json, &bin)
 }
 
 const SEEDS: [&str; 2] = ["sphere_on_ground.glb", "everything.glb"];
 
 fn config(cases: u32) -> ProptestConfig {
-    let cases = std::env::var("PROPTEST_CASES").ok().and_then(|c| c.parse().ok()).unwrap_or(cases);
+    let set = |name: &str| std::env::var(name).ok().and_then(|c| c.parse().ok());
+    let cases = set("BAKE_FUZZ_ITERATIONS").or_else(|| set("PROPTEST_CASES")).unwrap_or(cases);
     ProptestConfig { cases, failure_persistence: None, ..ProptestConfig::default() }
 }
 
@@ -249,6 +271,219 @@ proptest! {
     fn truncated_files_never_panic(seed in 0..SEEDS.len(), cut in any::<Index>()) {
         let bytes = fixture(SEEDS[seed]);
         check(&bytes[..cut.index(bytes.len())])?;
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Environment maps and `bake check`'s inputs: read from files, as the CLI reads them.
+
+/// Runs `read` on `bytes` written to a file of its own (the readers take
+/// paths, as the CLI's do) and returns its error text or "ok" and the
+/// largest allocation it made. Panics propagate.
+fn read_file(bytes: &[u8], name: &str, read: impl FnOnce(&Path) -> anyhow::Result<()>) -> (String, usize) {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch();
+    let path = dir.path().join(name);
+    std::fs::write(&path, bytes).unwrap();
+    LARGEST.store(0, Ordering::Relaxed);
+    let outcome = read(&path);
+    let largest = LARGEST.load(Ordering::Relaxed);
+    let outcome = outcome.map_or_else(|e| format!("{e:#}"), |()| "ok".into());
+    // BAKE_FUZZ_SHOW=1: each case's outcome, to see how deep the mutations reach.
+    if std::env::var_os("BAKE_FUZZ_SHOW").is_some() {
+        eprintln!("{name}: {outcome}");
+    }
+    (outcome, largest)
+}
+
+fn scratch() -> tempfile::TempDir {
+    tempfile::tempdir().unwrap()
+}
+
+/// Image readers may decode at most their format's densest coding of the
+/// file's bytes (1032 decoded bytes per byte of deflate, README "Bad
+/// input"), plus room for the copies a reader makes.
+fn image_allocation_allowed(bytes: &[u8]) -> usize {
+    (bytes.len() * 1032 * 2).max(16 << 20)
+}
+
+/// `--env FILE` as the CLI loads it: read, sanitised, bounded, turned into lights.
+fn load_environment(path: &Path) -> anyhow::Result<()> {
+    bake::load_environment(path, &bake::config::EnvironmentOptions::default()).map(|_| ())
+}
+
+fn check_environment(bytes: &[u8], name: &str) -> Result<(), TestCaseError> {
+    let (outcome, largest) = read_file(bytes, name, load_environment);
+    prop_assert!(largest <= image_allocation_allowed(bytes), "allocated {largest} bytes ({outcome})");
+    Ok(())
+}
+
+/// Environment seeds: the small fixtures, and maps written here in the
+/// codings the fixtures lack (half and tiled EXR, run-length HDR).
+fn environment_seeds() -> Vec<(Vec<u8>, &'static str)> {
+    use bake::environment::{EnvironmentMap, ExrPrecision, write_exr, write_hdr};
+    let mut seeds: Vec<(Vec<u8>, &'static str)> = ["sky_constant.exr", "sky_horizon.exr"]
+        .into_iter()
+        .map(|name| (fixture(name), "env.exr"))
+        .chain(["sky_constant.hdr", "sky_horizon.hdr"].into_iter().map(|name| (fixture(name), "env.hdr")))
+        .collect();
+    let map = EnvironmentMap::from_fn(32, 16, |d| [d[0].abs() * 4.0, d[1].max(0.0), 0.25]);
+    let dir = scratch();
+    for (precision, tiled) in [(ExrPrecision::Half, false), (ExrPrecision::Float, true)] {
+        let path = dir.path().join("seed.exr");
+        write_exr(&map, &path, precision, tiled).unwrap();
+        seeds.push((std::fs::read(&path).unwrap(), "env.exr"));
+    }
+    let path = dir.path().join("seed.hdr");
+    write_hdr(&map, &path).unwrap();
+    seeds.push((std::fs::read(&path).unwrap(), "env.hdr"));
+    seeds
+}
+
+/// A committed golden report: the seed of the report mutations.
+fn golden_report() -> Vec<u8> {
+    std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("pipeline/golden/sphere_on_ground.json")).unwrap()
+}
+
+/// `bake check REPORT --against GOLDEN` on a report: read it, check each
+/// scene's invariants and energy balance, compare it with the golden one.
+fn check_report(bytes: &[u8]) -> Result<(), TestCaseError> {
+    let golden =
+        bake::check::read_report(&Path::new(env!("CARGO_MANIFEST_DIR")).join("pipeline/golden/sphere_on_ground.json"))
+            .unwrap();
+    let (outcome, largest) = read_file(bytes, "report.json", |path| {
+        let report = bake::check::read_report(path)?;
+        for scene in &report.scenes {
+            let _ = bake::check::invariants(scene);
+            let _ = bake::check::energy_balance(scene);
+        }
+        let _ = bake::check::compare(&report, &golden, 0.02, None);
+        Ok(())
+    });
+    prop_assert!(largest <= (64 * bytes.len()).max(16 << 20), "allocated {largest} bytes ({outcome})");
+    Ok(())
+}
+
+/// The scene `bake check` checks a lightmap against (the golden report's),
+/// and a lightmap EXR of its atlas size as export writes it.
+fn lightmap_seed() -> (bake::report::SceneReport, Vec<u8>) {
+    let report =
+        bake::check::read_report(&Path::new(env!("CARGO_MANIFEST_DIR")).join("pipeline/golden/sphere.json")).unwrap();
+    let scene = report.scenes[0].clone();
+    let (width, height) = (scene.atlas.width, scene.atlas.height);
+    let n = (width * height) as usize;
+    let pixels = (0..n).map(|i| [(i % 7) as f32 * 0.5, (i % 13) as f32, 1.0]).collect();
+    let image = bake::export::lightmap::Image { width, height, pixels, written: vec![true; n], chart: vec![0; n] };
+    (scene, image.encode_exr().unwrap())
+}
+
+fn check_lightmap(scene: &bake::report::SceneReport, bytes: &[u8]) -> Result<(), TestCaseError> {
+    let (outcome, largest) = read_file(bytes, "scene.lightmap0.exr", |path| {
+        let (file, length) = bake::files::open(path)?;
+        bake::check::lightmap_violations(path, file, length, scene).map(|_| ())
+    });
+    prop_assert!(largest <= image_allocation_allowed(bytes), "allocated {largest} bytes ({outcome})");
+    Ok(())
+}
+
+/// A byte-level change to a file.
+#[derive(Clone, Debug)]
+enum Mutation {
+    /// XOR a byte with a non-zero mask.
+    Flip(Index, u8),
+    /// Set a byte among the first 512 (headers, attribute tables, offsets).
+    Head(usize, u8),
+    /// Write a little-endian 32-bit number (a size, count or offset) at any position.
+    Word(Index, u32),
+    /// Cut the file there.
+    Cut(Index),
+}
+
+fn mutation() -> impl Strategy<Value = Mutation> {
+    let word = prop_oneof![
+        prop::sample::select(vec![
+            0u32,
+            1,
+            2,
+            3,
+            7,
+            8,
+            255,
+            256,
+            65535,
+            65536,
+            1 << 20,
+            i32::MAX as u32,
+            1 << 31,
+            u32::MAX
+        ]),
+        any::<u32>(),
+    ];
+    prop_oneof![
+        4 => (any::<Index>(), 1u8..).prop_map(|(i, m)| Mutation::Flip(i, m)),
+        3 => (0usize..512, any::<u8>()).prop_map(|(i, v)| Mutation::Head(i, v)),
+        2 => (any::<Index>(), word).prop_map(|(i, w)| Mutation::Word(i, w)),
+        1 => any::<Index>().prop_map(Mutation::Cut),
+    ]
+}
+
+fn mutated(mut bytes: Vec<u8>, mutations: &[Mutation]) -> Vec<u8> {
+    for mutation in mutations {
+        if bytes.is_empty() {
+            break;
+        }
+        match *mutation {
+            Mutation::Flip(ref at, mask) => {
+                let at = at.index(bytes.len());
+                bytes[at] ^= mask;
+            }
+            Mutation::Head(at, value) => {
+                if at < bytes.len() {
+                    bytes[at] = value;
+                }
+            }
+            Mutation::Word(ref at, word) => {
+                let at = at.index(bytes.len());
+                let end = (at + 4).min(bytes.len());
+                bytes[at..end].copy_from_slice(&word.to_le_bytes()[..end - at]);
+            }
+            Mutation::Cut(ref at) => bytes.truncate(at.index(bytes.len())),
+        }
+    }
+    bytes
+}
+
+/// Applies JSON `edits` (as for the glTF chunk) to a report.
+fn edited_report(edits: &[Edit]) -> Vec<u8> {
+    let mut json: Value = serde_json::from_slice(&golden_report()).unwrap();
+    apply(&mut json, edits);
+    serde_json::to_vec_pretty(&json).unwrap()
+}
+
+proptest! {
+    #![proptest_config(config(300))]
+
+    #[test]
+    fn mutated_environments_never_panic(seed in any::<Index>(), mutations in prop::collection::vec(mutation(), 1..8)) {
+        let seeds = environment_seeds();
+        let (bytes, name) = seed.get(&seeds);
+        check_environment(&mutated(bytes.clone(), &mutations), name)?;
+    }
+
+    #[test]
+    fn mutated_reports_never_panic(mutations in prop::collection::vec(mutation(), 1..8)) {
+        check_report(&mutated(golden_report(), &mutations))?;
+    }
+
+    #[test]
+    fn edited_reports_never_panic(edits in prop::collection::vec(edit(), 1..5)) {
+        check_report(&edited_report(&edits))?;
+    }
+
+    #[test]
+    fn mutated_lightmaps_never_panic(mutations in prop::collection::vec(mutation(), 1..8)) {
+        let (scene, bytes) = lightmap_seed();
+        check_lightmap(&scene, &mutated(bytes, &mutations))?;
     }
 }
 

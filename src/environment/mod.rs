@@ -261,6 +261,13 @@ pub(crate) fn dir_from_angles(phi: f64, theta: f64) -> [f64; 3] {
 }
 
 impl EnvironmentMap {
+    /// The index and value of the largest channel value of any texel (`None` for an empty map);
+    /// NaN is passed over.
+    pub fn brightest(&self) -> Option<(usize, f32)> {
+        let channels = self.texels.iter().enumerate().flat_map(|(i, t)| t.iter().map(move |&v| (i, v)));
+        channels.filter(|(_, v)| !v.is_nan()).max_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
     /// Builds a `width×height` map by evaluating `f` at every pixel centre direction (unit
     /// vector, map space). Any size ≥ 1×1 is accepted (files must be 2:1 or 1×1).
     ///

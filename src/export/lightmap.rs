@@ -109,6 +109,21 @@ impl Image {
         filled
     }
 
+    /// Refuses an image holding a NaN, infinite or negative texel, naming the
+    /// first and the count: bake never ships one. The import's bounds
+    /// (`limits`) keep every figure inside f32, so reaching this is a bug.
+    pub fn check_shippable(&self) -> Result<()> {
+        let bad = |p: &[f32; 3]| p.iter().any(|c| !c.is_finite() || *c < 0.0);
+        let Some(first) = self.pixels.iter().position(bad) else { return Ok(()) };
+        let count = self.pixels.iter().filter(|p| bad(p)).count();
+        let (x, y) = (first % self.width as usize, first / self.width as usize);
+        anyhow::bail!(
+            "the lightmap holds {count} NaN, infinite or negative texel(s), the first at ({x}, {y}): {:?}; nothing \
+             written, since bake never ships such a texel (a bug in bake: please report it with the input)",
+            self.pixels[first]
+        )
+    }
+
     /// A float RGB OpenEXR file (ZIP-compressed, lossless), as bytes.
     pub fn encode_exr(&self) -> Result<Vec<u8>> {
         use exr::prelude::*;
@@ -246,6 +261,19 @@ pub struct Fixups {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn unshippable_texels_are_refused_naming_the_first() {
+        let mut image = Image::blank(4, 2);
+        image.check_shippable().unwrap();
+        image.pixels[6] = [1.0, f32::INFINITY, 0.0];
+        image.pixels[7] = [-1.0, 0.0, 0.0];
+        let error = image.check_shippable().unwrap_err().to_string();
+        assert!(error.contains("2 NaN, infinite or negative texel(s), the first at (2, 1)"), "{error}");
+        image.pixels[6] = [f32::NAN; 3];
+        image.pixels[7] = [0.0; 3];
+        assert!(image.check_shippable().is_err());
+    }
 
     #[test]
     fn srgb_endpoints_and_midpoint() {

@@ -73,6 +73,7 @@ pub fn run(baked: &Baked, options: &ExportOptions, dir: &Path) -> Result<ExportS
         scene.primitives.iter().map(|p| material_json(p.material).is_some_and(materials::alpha_from_texture)).collect();
     let (lightmap, beauty, fixups) =
         lightmap::images(&baked.texels, &baked.solution, &as_emission, options.dilation, &seam_edges);
+    lightmap.check_shippable()?;
     let exr_name = format!("{}.lightmap0.exr", scene.name);
     let exr = lightmap.encode_exr()?;
     let beauty_png = beauty.encode_png(options.exposure.exp2())?;

@@ -215,7 +215,7 @@ fn non_finite_positions_are_refused() {
     json["nodes"][1]["scale"] = json!([1e38, 1e38, 1e38]);
     json["nodes"][1]["translation"] = json!([3e38, 0.0, 0.0]);
     case.write("overflow.glb", &glb(&json, &bin));
-    case.refused(&["overflow.glb"], "overflow.glb", "the node transform overflows");
+    case.refused(&["overflow.glb"], "overflow.glb", "the scene spans 4e38 m along x, more than the 1e7 m");
 }
 
 #[test]
@@ -231,7 +231,10 @@ fn huge_declared_counts_are_refused_before_allocating() {
     json["accessors"][7]["count"] = json!(2_000_000_000u32);
     json["bufferViews"][7]["byteLength"] = json!(8_000_000_000u64);
     case.write("view.glb", &glb(&json, &bin));
-    case.refused(&["view.glb"], "view.glb", "bufferView 7 (8000000000 bytes at");
+    // Within the triangle budget, which counts the declared indices before the view is read.
+    let env = fixture("sky_constant.hdr");
+    let within = ["view.glb", "--env", env.to_str().unwrap(), "--max-triangles", "1000000000"];
+    case.refused(&within, "view.glb", "bufferView 7 (8000000000 bytes at");
     let (mut json, bin) = parts();
     json["buffers"][0]["byteLength"] = json!(1u64 << 40);
     case.write("buffer.glb", &glb(&json, &bin));
@@ -906,6 +909,10 @@ fn command_line_errors_are_one_line_naming_the_option_value_and_range() {
         ("--max-atlas-size", "-5", "16.."),
         ("--patches", "0", "1..=1048576"),
         ("--max-shots", "x", "x"),
+        ("--max-shots", "-1", "0.."),
+        ("--reference", "-1", "1..=65536"),
+        ("--max-triangles", "0", "1.."),
+        ("--gpu-timeout", "1e300", "[0, 1e9]"),
         ("--texels-per-unit", "-2", "positive"),
     ] {
         let line = case.refused(&["scene.glb", option, value], option, value);
@@ -964,4 +971,155 @@ fn staging_folders_are_removed_on_a_signal_and_stale_ones_on_the_next_run() {
     let output = case.run(&["scene.glb", "--env", env.to_str().unwrap()]);
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     assert_eq!(staging(&case), [".bake-staging-notapid"]);
+}
+
+#[test]
+fn finite_scene_values_that_would_overflow_are_refused_naming_value_place_and_bound() {
+    let case = Case::new();
+    // A node scaled by 10³⁰: triangle areas of 10⁶⁰ m², far past f32.
+    edited(&case, "scaled.glb", |json, _| json["nodes"][0]["scale"] = json!([1e30, 1e30, 1e30]));
+    let line = case.refused(&["scaled.glb"], "scaled.glb", "the scene spans 1e31 m along x, more than the 1e7 m");
+    assert!(line.contains("vertex 0 of mesh 0 'ground' on node 0 'ground', primitive 0 at x = -5e30"), "{line}");
+    // One vertex 10³⁸ m out.
+    edited(&case, "stray.glb", |json, bin| {
+        let at = element_offset(
+            json,
+            json["meshes"][1]["primitives"][0]["attributes"]["POSITION"].as_u64().unwrap() as usize,
+            5,
+        );
+        bin[at..at + 4].copy_from_slice(&(-1e38f32).to_le_bytes());
+    });
+    case.refused(
+        &["stray.glb"],
+        "stray.glb",
+        "from vertex 5 of mesh 1 'sphere' on node 1 'sphere', primitive 0 at x = -1e38",
+    );
+    // KHR_materials_emissive_strength of 10³⁸, and a negative one.
+    for (name, strength, shown) in [("glow.glb", 1e38, "1e38"), ("dark.glb", -5.0, "-5")] {
+        edited(&case, name, |json, _| {
+            json["extensionsUsed"] = json!(["KHR_materials_emissive_strength"]);
+            json["materials"][1]["emissiveFactor"] = json!([1.0, 1.0, 1.0]);
+            json["materials"][1]["extensions"] =
+                json!({ "KHR_materials_emissive_strength": { "emissiveStrength": strength } });
+        });
+        case.refused(
+            &[name],
+            name,
+            &format!(
+                "material 1 'sphere': emission (emissiveFactor × KHR_materials_emissive_strength) {shown} is not a \
+                      radiance bake accepts: finite, ≥ 0 and at most 1e12"
+            ),
+        );
+    }
+    // A point light of 10³⁸ candela.
+    edited(&case, "lamp.glb", |json, _| {
+        json["extensionsUsed"] = json!(["KHR_lights_punctual"]);
+        json["extensions"] = json!({ "KHR_lights_punctual": { "lights": [{ "type": "point", "intensity": 1e38 }] } });
+        json["nodes"].as_array_mut().unwrap().push(json!({ "translation": [0.0, 3.0, 0.0],
+            "extensions": { "KHR_lights_punctual": { "light": 0 } } }));
+        json["scenes"][0]["nodes"].as_array_mut().unwrap().push(json!(2));
+    });
+    case.refused(&["lamp.glb"], "lamp.glb", "light 0 on node 2: colour × intensity 1e38 is more than the 1e12");
+}
+
+#[test]
+fn environments_that_would_overflow_are_refused_naming_the_texel_and_bound() {
+    let case = Case::new();
+    std::fs::copy(fixture("sphere.glb"), case.path("sphere.glb")).unwrap();
+    let mut map = EnvironmentMap::from_fn(64, 32, |_| [1.0; 3]);
+    map.texels[3 * 64 + 5] = [3e38, 1.0, 1.0];
+    write_exr(&case, "hot.exr", &map);
+    case.refused(
+        &["sphere.glb", "--env", "hot.exr"],
+        "environment 'hot.exr'",
+        "texel (col,row) (5,3) is 3e38, more radiance than the 1e12 bake accepts",
+    );
+    write_exr(&case, "sky.exr", &EnvironmentMap::from_fn(64, 32, |_| [1.0; 3]));
+    case.refused(
+        &["sphere.glb", "--env", "sky.exr", "--env-intensity", "1e38"],
+        "environment 'sky.exr'",
+        "is 1 × --env-intensity 1e38 = 1e38, more radiance than the 1e12",
+    );
+    // At the bound it bakes, every texel finite.
+    let (mean, _) = sphere_mean(&case, &["--env", "sky.exr", "--env-intensity", "1e12"]);
+    assert!((mean / 1e12 - 1.0).abs() < 0.02, "mean L_lm {mean}");
+}
+
+#[test]
+fn a_scene_over_the_triangle_budget_is_refused_before_it_is_read() {
+    let case = Case::new();
+    // 587 KB of glTF drawing the sphere from 10 000 nodes: 22 M triangles.
+    edited(&case, "crowd.glb", |json, _| {
+        let nodes = json["nodes"].as_array_mut().unwrap();
+        let first = nodes.len();
+        nodes.extend(
+            (0..10_000)
+                .map(|i| json!({ "mesh": 1, "translation": [(i % 100) as f64 * 2.0, 0.0, (i / 100) as f64 * 2.0] })),
+        );
+        json["scenes"][0]["nodes"] = json!((0..first + 10_000).collect::<Vec<_>>());
+    });
+    let start = std::time::Instant::now();
+    let line = case.refused(&["crowd.glb"], "crowd.glb", "the scene draws 22082240 triangles");
+    assert!(line.contains("more than the budget of 4000000 (--max-triangles): raise --max-triangles"), "{line}");
+    assert!(start.elapsed().as_secs_f64() < 10.0, "refused only after {:?}", start.elapsed());
+    // The budget is the user's to set: the fixture's 2240 triangles need 2240.
+    std::fs::copy(fixture("sphere_on_ground.glb"), case.path("scene.glb")).unwrap();
+    case.refused(
+        &["scene.glb", "--max-triangles", "2239"],
+        "scene.glb",
+        "draws 2240 triangles (node and GPU instances expanded), more than the budget of 2239",
+    );
+    let env = fixture("sky_constant.hdr");
+    let output = case.run(&["scene.glb", "--env", env.to_str().unwrap(), "--max-triangles", "2240"]);
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+}
+
+/// Runs `command` with at most `bytes` of data memory (RLIMIT_DATA: heap
+/// and private writable mappings): its exit code, `None` when it died of a
+/// signal (an allocation refused aborts the process).
+fn exit_within_data_limit(mut command: Command, bytes: u64) -> Option<i32> {
+    use std::os::unix::process::CommandExt;
+    let limit = libc::rlimit { rlim_cur: bytes as libc::rlim_t, rlim_max: bytes as libc::rlim_t };
+    // SAFETY: setrlimit is async-signal-safe, as code between fork and exec must be.
+    unsafe {
+        command.pre_exec(move || match libc::setrlimit(libc::RLIMIT_DATA, &limit) {
+            0 => Ok(()),
+            _ => Err(std::io::Error::last_os_error()),
+        });
+    }
+    // Its table, one line per missing mesh, would fill a pipe nobody reads.
+    let status = command.stdout(std::process::Stdio::null()).stderr(std::process::Stdio::null()).status();
+    status.expect("bake runs").code()
+}
+
+#[test]
+fn check_reads_a_large_golden_report_in_bounded_memory() {
+    let out = tempfile::tempdir().unwrap();
+    crate::common::bake_file(
+        &fixture("sphere_on_ground.glb"),
+        out.path(),
+        &["--max-atlas-size", "32", "--lights", "16"],
+    );
+    let mut golden: Value = serde_json::from_slice(&std::fs::read(out.path().join("report.json")).unwrap()).unwrap();
+    // About 50 MB: 20 000 meshes the bake does not have, and a long convergence trace.
+    let scene = &mut golden["scenes"][0];
+    let mesh = scene["energy"][0].clone();
+    let meshes = (0..20_000).map(|i| {
+        let mut mesh = mesh.clone();
+        mesh["node"] = json!(1000 + i);
+        mesh
+    });
+    scene["energy"].as_array_mut().unwrap().extend(meshes);
+    let trace = scene["bounce"]["trace"].as_array_mut().expect("the fixture bounces light");
+    let point = trace[0].clone();
+    trace.extend(std::iter::repeat_n(point, 100_000));
+    let bytes = serde_json::to_vec_pretty(&golden).unwrap();
+    drop(golden);
+    std::fs::write(out.path().join("golden.json"), &bytes).unwrap();
+    let mut command = Command::new(env!("CARGO_BIN_EXE_bake"));
+    command.current_dir(out.path()).args(["check", "report.json", "--against", "golden.json"]);
+    // Read whole and parsed into a JSON tree, it took 4 times the file (1.2 GB for 285 MB);
+    // streamed, it needs less than the file's size.
+    let code = exit_within_data_limit(command, bytes.len() as u64);
+    assert_eq!(code, Some(1), "a check of 20 000 missing meshes within {} bytes of memory", bytes.len());
 }
