@@ -30,11 +30,9 @@ pub const MAX_SCENE_EXTENT: f64 = 1e7;
 pub const MAX_LIGHT: f64 = 1e12;
 
 /// The default of `--max-triangles`: the most triangles one input may draw
-/// once node and GPU instances are expanded. Unwrapping took 0.7 s per
-/// 100 000 triangles here (2 cores; 112 640 in 0.72 s), and a 22 M-triangle
-/// scene held 3.6 GB still unwrapping after 170 s (issue 50): 4 million is
-/// about half a minute and under a GB, past most game levels, and short of
-/// what a small file drawing one mesh from thousands of nodes asks for.
+/// once node and GPU instances are expanded. Past most game levels, short
+/// of what a small file drawing one mesh from thousands of nodes asks for,
+/// and an unwrap of well under a minute and a GB on a 2-core build machine.
 pub const DEFAULT_MAX_TRIANGLES: u64 = 4_000_000;
 
 /// Whether `value` is a usable light figure: finite, ≥ 0 and at most [`MAX_LIGHT`].
