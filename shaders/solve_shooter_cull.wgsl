@@ -8,18 +8,19 @@
 //
 // The test is conservative against `solve_shoot`'s `shot_geometry` (the
 // group's bounding box and cone of normals hold every texel's, widened by
-// `margin` for rounding): a slot left out gives none of its texels light.
+// half of `in_plane` for rounding): a slot left out gives none of its
+// texels light.
 
-// A group's texels: the box of their positions, the cone of their shading
-// normals (cos_spread −1: any direction), and the rounding allowance in
-// metres (half of `in_plane`). Mirrors `shooter_cull::ReceiverGroup`.
+// A group's texels: the box of their positions and the cone of their
+// shading normals (cos_spread −1: any direction). Mirrors
+// `shooter_cull::ReceiverGroup`.
 struct ReceiverGroup {
     lo: vec3f,
     cos_spread: f32,
     hi: vec3f,
     sin_spread: f32,
     axis: vec3f,
-    margin: f32,
+    _pad: f32,
 }
 
 @group(0) @binding(0) var<uniform> params: BounceParams;
@@ -31,10 +32,12 @@ struct ReceiverGroup {
 // Whether shooter `s` can light any texel of group `g`: one must lie in
 // front of its plane (by more than `params.in_plane`), and face its centroid.
 fn may_light(g: ReceiverGroup, s: Shooter) -> bool {
+    // What the test allows for rounding, metres.
+    let margin = 0.5 * params.in_plane;
     let centre = 0.5 * (g.lo + g.hi);
     let half = 0.5 * (g.hi - g.lo);
     let highest = dot(centre - s.position, s.normal) + dot(half, abs(s.normal));
-    if (highest <= params.in_plane - g.margin) {
+    if (highest <= params.in_plane - margin) {
         return false;
     }
     // The largest dot(n, s.position − p) over the cone's normals n and the
@@ -47,7 +50,7 @@ fn may_light(g: ReceiverGroup, s: Shooter) -> bool {
         let sin_v = sqrt(max(1.0 - cos_v * cos_v, 0.0));
         toward = distance * (cos_v * g.cos_spread + sin_v * g.sin_spread);
     }
-    return toward + length(half) + g.margin > 0.0;
+    return toward + length(half) + margin > 0.0;
 }
 
 @compute @workgroup_size(64)

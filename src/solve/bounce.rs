@@ -439,7 +439,7 @@ pub fn run(
         in_plane: shooter_cull::in_plane(&texels.texels),
         _pad: 0,
     };
-    let patch_params = BounceParams { row_stride: patch_groups_x * 64, ..params };
+    let patch_params = params.with_row_stride(patch_groups_x * 64);
 
     let patch_coverage = patch_coverage(texels, patches, coverage);
     let inputs =

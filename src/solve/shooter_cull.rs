@@ -12,10 +12,11 @@ use crate::gpu::{self, Gpu, Shader};
 use crate::texelize::Texel;
 
 /// Texels per group: `solve_shoot`'s workgroup size.
-pub const GROUP_TEXELS: usize = 64;
+const GROUP_TEXELS: usize = 64;
 
-/// Relative rounding allowance of the test: the shader's sums and the
-/// gather's each round at about 1e-7 of the coordinates' magnitude.
+/// Relative rounding allowance of the test (`in_plane` is twice it): the
+/// shader's sums and the gather's each round at about 1e-7 of the
+/// coordinates' magnitude.
 const ROUNDING: f32 = 1e-5;
 /// Widening of each group's cone of normals, radians, for normals not
 /// quite unit length.
@@ -30,7 +31,7 @@ pub struct ReceiverGroup {
     hi: [f32; 3],
     sin_spread: f32,
     axis: [f32; 3],
-    margin: f32,
+    _pad: f32,
 }
 
 pub struct ShooterCull {
@@ -83,23 +84,18 @@ impl ShooterCull {
 }
 
 /// How close to a shooter's plane a receiver lies in it
-/// (`BounceParams::in_plane`): twice what the test allows for rounding.
+/// (`BounceParams::in_plane`): twice the test's allowance for rounding,
+/// `ROUNDING` of the largest coordinate.
 pub fn in_plane(texels: &[Texel]) -> f32 {
-    2.0 * rounding(texels)
-}
-
-/// The rounding allowance, metres: `ROUNDING` of the largest coordinate.
-fn rounding(texels: &[Texel]) -> f32 {
-    ROUNDING * texels.iter().map(|t| Vec3::from(t.position).abs().max_element()).fold(0.0f32, f32::max)
+    2.0 * ROUNDING * texels.iter().map(|t| Vec3::from(t.position).abs().max_element()).fold(0.0f32, f32::max)
 }
 
 /// The bounds of each run of `GROUP_TEXELS` texels, in order.
-pub fn receiver_groups(texels: &[Texel]) -> Vec<ReceiverGroup> {
-    let margin = rounding(texels);
-    texels.chunks(GROUP_TEXELS).map(|chunk| group_bounds(chunk, margin)).collect()
+fn receiver_groups(texels: &[Texel]) -> Vec<ReceiverGroup> {
+    texels.chunks(GROUP_TEXELS).map(group_bounds).collect()
 }
 
-fn group_bounds(texels: &[Texel], margin: f32) -> ReceiverGroup {
+fn group_bounds(texels: &[Texel]) -> ReceiverGroup {
     let positions = texels.iter().map(|t| Vec3::from(t.position));
     let lo = positions.clone().fold(Vec3::INFINITY, Vec3::min);
     let hi = positions.fold(Vec3::NEG_INFINITY, Vec3::max);
@@ -114,5 +110,41 @@ fn group_bounds(texels: &[Texel], margin: f32) -> ReceiverGroup {
     } else {
         (spread.cos(), spread.sin())
     };
-    ReceiverGroup { lo: lo.into(), cos_spread, hi: hi.into(), sin_spread, axis: axis.into(), margin }
+    ReceiverGroup { lo: lo.into(), cos_spread, hi: hi.into(), sin_spread, axis: axis.into(), _pad: 0.0 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn texel(position: [f32; 3], normal: [f32; 3]) -> Texel {
+        Texel { position, normal, ..Texel::default() }
+    }
+
+    #[test]
+    fn a_group_bounds_every_texel_position_and_normal() {
+        // A strip across a ball's flank: positions and normals both vary.
+        let texels: Vec<Texel> = (0..GROUP_TEXELS)
+            .map(|i| {
+                let a = i as f32 * 0.02;
+                texel([a.cos() * 2.0, a.sin() * 2.0, 0.5 - a], [a.cos(), a.sin(), 0.0])
+            })
+            .collect();
+        let g = group_bounds(&texels);
+        let (lo, hi, axis) = (Vec3::from(g.lo), Vec3::from(g.hi), Vec3::from(g.axis));
+        for t in &texels {
+            let p = Vec3::from(t.position);
+            assert!(p.cmpge(lo).all() && p.cmple(hi).all(), "{p} outside {lo}..{hi}");
+            assert!(Vec3::from(t.normal).dot(axis) >= g.cos_spread, "{:?} outside the cone", t.normal);
+        }
+        // The cone is no wider than the normals need: 63 × 0.02 rad across.
+        let half_angle = g.cos_spread.acos();
+        assert!((0.63..0.64).contains(&half_angle), "half-angle {half_angle}");
+    }
+
+    #[test]
+    fn normals_that_cancel_bound_nothing() {
+        let texels = [texel([0.0; 3], [0.0, 1.0, 0.0]), texel([1.0, 0.0, 0.0], [0.0, -1.0, 0.0])];
+        assert_eq!(group_bounds(&texels).cos_spread, -1.0);
+    }
 }
