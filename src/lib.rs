@@ -11,6 +11,7 @@
 pub mod asset;
 pub mod check;
 pub mod cli;
+pub mod colour;
 pub mod config;
 pub mod environment;
 pub mod export;

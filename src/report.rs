@@ -16,6 +16,7 @@ use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
+use crate::colour::luminance;
 use crate::config::Config;
 use crate::environment::EnvironmentMap;
 use crate::gpu::{AdapterDescription, Gpu};
@@ -451,10 +452,6 @@ pub struct EnergyStats {
     /// Smallest and largest texel albedo, RGB ([0, 0, 0] without texels).
     pub albedo_min: [f64; 3],
     pub albedo_max: [f64; 3],
-}
-
-pub fn luminance(c: [f64; 3]) -> f64 {
-    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
 }
 
 /// Accumulates `EnergyStats` texel by texel.

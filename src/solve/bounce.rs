@@ -52,6 +52,7 @@ use super::casters::{Casters, Topology};
 use super::hemicube_cull::HemicubeCull;
 use super::patches::Patches;
 use super::shooter_cull::{self, ShooterCull};
+use crate::colour::luminance;
 use crate::gpu::{self, Gpu, Shader, read_buffer};
 use crate::scene::Scene;
 use crate::texelize::{Texel, TexelSet};
@@ -280,10 +281,6 @@ struct GpuStats {
     shooters: u32,
     landing: f32,
     _pad: [u32; 2],
-}
-
-fn luminance(c: [f64; 3]) -> f64 {
-    crate::report::luminance(c)
 }
 
 /// Everything the bounce pass binds, created once.

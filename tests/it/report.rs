@@ -174,7 +174,7 @@ fn the_report_records_inputs_options_memory_and_energy() {
         assert_eq!(s.power_emitted, [0.0; 3]);
     }
     let direct = scene.direct.as_ref().unwrap();
-    assert!(bake::report::luminance(direct.power_received) < bake::report::luminance(atlas.power_received));
+    assert!(bake::colour::luminance(direct.power_received) < bake::colour::luminance(atlas.power_received));
     let balance = bake::check::energy_balance(scene).expect("the energy balance holds");
     eprintln!("{balance:?}");
 }
