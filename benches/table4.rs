@@ -30,7 +30,7 @@ use bake::environment::{EnvironmentMap, LightMode, LightSet};
 use bake::fixtures::{TABLE4_STATUE_FREQUENCY, three_statues};
 use bake::gpu::Gpu;
 use bake::progress::Silent;
-use bake::report::{ReferenceCheck, reference_probes};
+use bake::reference::{ReferenceCheck, reference_probes};
 use bake::scene::Scene;
 use bake::solve::TracePoint;
 use bake::solve::patches::Sight;

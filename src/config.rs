@@ -45,7 +45,7 @@ pub struct BakeOptions {
     pub solve: SolveOptions,
     pub export: ExportOptions,
     /// `--reference`: estimate some texels with the CPU reference and trace the error at them.
-    pub reference: Option<crate::report::ReferenceCheck>,
+    pub reference: Option<crate::reference::ReferenceCheck>,
 }
 
 /// Everything one `bake` run needs.

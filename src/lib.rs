@@ -172,7 +172,7 @@ pub fn bake_scene(
     if let Some(check) = &options.reference {
         let start = Instant::now();
         let (probes, noise) = stage(gpu, progress, &mut stages, &name, "reference", |_| {
-            let (probes, noise) = report::reference_probes(&scene, &texels, check);
+            let (probes, noise) = reference::reference_probes(&scene, &texels, check);
             let summary = format!(
                 "{} texels × {} paths on the CPU, noise {:.2}%",
                 probes.texels.len(),

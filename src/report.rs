@@ -18,11 +18,8 @@ use sha2::{Digest, Sha256};
 
 use crate::colour::luminance;
 use crate::config::Config;
-use crate::environment::EnvironmentMap;
 use crate::gpu::{AdapterDescription, Gpu};
-use crate::reference::{Reference, ReferenceOptions, ReferencePoint};
-use crate::scene::{PrimitiveKey, Scene};
-use crate::solve::bounce::Probes;
+use crate::scene::PrimitiveKey;
 use crate::solve::{BounceStats, ContactStats, Skipped, Solution, direct::DirectStats, punctual::PunctualStats};
 use crate::texelize::TexelSet;
 
@@ -210,23 +207,6 @@ pub struct SceneReport {
     pub reference: Option<ReferenceReport>,
 }
 
-/// `--reference N`: N texels estimated by the CPU reference path tracer
-/// (`src/reference/`) before the solve; the trace records the bake's error
-/// at them as it converges.
-#[derive(Clone, Debug)]
-pub struct ReferenceCheck {
-    /// Texels to estimate (spread evenly over the covered texels with area).
-    pub texels: usize,
-    /// Paths per texel.
-    pub samples: u32,
-    /// The full-resolution environment, with its rotation and intensity. `run`
-    /// sets it; a library caller of `bake_scene` that bakes under an
-    /// environment must set it too (`None` traces against a black sky).
-    pub environment: Option<std::sync::Arc<EnvironmentMap>>,
-    pub env_rotation_degrees: f32,
-    pub env_intensity: f32,
-}
-
 /// What `--reference` measured.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct ReferenceReport {
@@ -241,53 +221,6 @@ pub struct ReferenceReport {
     pub noise: f64,
     /// Relative RMSE of the final lightmap at those texels.
     pub error: f64,
-}
-
-/// Estimates `check.texels` texels of `texels` with the CPU reference:
-/// the probes the bounce pass reads back, and the reference's relative noise.
-pub fn reference_probes(scene: &Scene, texels: &TexelSet, check: &ReferenceCheck) -> (Probes, f64) {
-    reference_probes_within(scene, texels, check, ReferenceOptions::default().max_bounces)
-}
-
-/// As [`reference_probes`], with light that reached the probes by more than
-/// `max_bounces` reflections left out (0: the direct light alone).
-pub fn reference_probes_within(
-    scene: &Scene,
-    texels: &TexelSet,
-    check: &ReferenceCheck,
-    max_bounces: u32,
-) -> (Probes, f64) {
-    let candidates: Vec<u32> =
-        (0..texels.texels.len() as u32).filter(|&i| texels.texels[i as usize].area > 0.0).collect();
-    let n = check.texels.min(candidates.len());
-    let chosen: Vec<u32> = (0..n).map(|k| candidates[(2 * k + 1) * candidates.len() / (2 * n)]).collect();
-    let points: Vec<ReferencePoint> = chosen
-        .iter()
-        .map(|&i| {
-            let t = &texels.texels[i as usize];
-            ReferencePoint { position: t.position, normal: t.normal, face_normal: Some(t.face_normal) }
-        })
-        .collect();
-    let options = ReferenceOptions {
-        samples: check.samples,
-        env_rotation_degrees: check.env_rotation_degrees,
-        env_intensity: check.env_intensity,
-        max_bounces,
-        ..ReferenceOptions::default()
-    };
-    let estimates = Reference::new(scene, check.environment.as_deref(), &options).estimate(&points);
-    let (mut variance, mut sum) = (0.0f64, 0.0f64);
-    for e in &estimates {
-        for c in 0..3 {
-            if e.std_error[c].is_finite() {
-                variance += e.std_error[c].powi(2);
-            }
-            sum += e.lightmap[c];
-        }
-    }
-    let count = (3 * estimates.len()).max(1) as f64;
-    let noise = if sum > 0.0 { (variance / count).sqrt() / (sum / count) } else { 0.0 };
-    (Probes { texels: chosen, reference: estimates.iter().map(|e| e.lightmap).collect() }, noise)
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

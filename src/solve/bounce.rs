@@ -54,6 +54,7 @@ use super::patches::Patches;
 use super::shooter_cull::{self, ShooterCull};
 use crate::colour::luminance;
 use crate::gpu::{self, Gpu, Shader, read_buffer};
+use crate::reference::Probes;
 use crate::scene::Scene;
 use crate::texelize::{Texel, TexelSet};
 
@@ -106,37 +107,6 @@ pub struct BounceOptions {
     /// Texels whose error against a reference is recorded at every trace
     /// point (`--reference`); `None`: not measured.
     pub probes: Option<std::sync::Arc<Probes>>,
-}
-
-/// Texels with reference values (`--reference`): at every trace point their
-/// current lightmap values are read back (a few bytes each) and compared.
-#[derive(Clone, Debug, Default)]
-pub struct Probes {
-    /// Indices into `TexelSet::texels`.
-    pub texels: Vec<u32>,
-    /// Reference L_lm of each, linear RGB.
-    pub reference: Vec<[f64; 3]>,
-}
-
-impl Probes {
-    /// Relative RMSE of `values` against the reference: the root mean
-    /// squared difference over texels and channels, over the reference's mean.
-    pub fn relative_rmse(&self, values: impl Iterator<Item = [f64; 3]>) -> f64 {
-        let (mut squared, mut sum, mut n) = (0.0f64, 0.0f64, 0usize);
-        for (value, reference) in values.zip(&self.reference) {
-            for c in 0..3 {
-                squared += (value[c] - reference[c]).powi(2);
-                sum += reference[c];
-                n += 1;
-            }
-        }
-        if n == 0 || sum <= 0.0 { 0.0 } else { (squared / n as f64).sqrt() / (sum / n as f64) }
-    }
-
-    /// `relative_rmse` of a whole lightmap (L_lm per texel) at the probes.
-    pub fn lightmap_error(&self, lightmap: &[[f32; 3]]) -> f64 {
-        self.relative_rmse(self.texels.iter().map(|&i| lightmap[i as usize].map(|v| v as f64)))
-    }
 }
 
 impl Default for BounceOptions {
