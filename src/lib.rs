@@ -424,7 +424,7 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
         schema_version: report::SCHEMA_VERSION,
         bake_version: env!("CARGO_PKG_VERSION").to_string(),
         inputs,
-        options: OptionsReport::from_config(config),
+        options: OptionsReport::from(config),
         adapter: gpu.adapter.clone(),
         environment: environment.map(|(_, report)| report),
         scenes,

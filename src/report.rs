@@ -17,7 +17,6 @@ use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 use crate::colour::luminance;
-use crate::config::Config;
 use crate::gpu::{AdapterDescription, Gpu};
 use crate::scene::PrimitiveKey;
 use crate::solve::{BounceStats, ContactStats, Skipped, Solution, direct::DirectStats, punctual::PunctualStats};
@@ -120,37 +119,6 @@ pub struct OptionsReport {
     /// `--reference`: texels estimated by the CPU reference (0: none).
     pub reference_texels: usize,
     pub reference_samples: u32,
-}
-
-impl OptionsReport {
-    pub fn from_config(config: &Config) -> OptionsReport {
-        let env = &config.environment_options;
-        let bake = &config.bake;
-        OptionsReport {
-            arguments: config.report.arguments.clone(),
-            texels_per_unit: bake.unwrap.texels_per_unit,
-            max_atlas_size: bake.unwrap.max_atlas_size,
-            padding: bake.unwrap.padding,
-            unwrapper: bake.unwrap.backend.to_string(),
-            lights: env.lights.to_string(),
-            env_rotation_degrees: env.rotation_degrees,
-            env_intensity: env.intensity,
-            clamp_nonfinite: env.clamp_nonfinite,
-            light_batch_size: bake.solve.batch_size,
-            tolerance: bake.solve.bounce.tolerance,
-            max_shots: bake.solve.bounce.max_shots,
-            max_seconds: bake.solve.bounce.max_seconds,
-            patches: bake.solve.bounce.patches,
-            shooters_per_batch: bake.solve.bounce.shooters_per_batch,
-            hemicube_size: bake.solve.bounce.hemicube_size,
-            exposure: bake.export.exposure,
-            dilation: bake.export.dilation,
-            adapter: config.adapter.clone(),
-            plot: config.report.plot,
-            reference_texels: bake.reference.as_ref().map_or(0, |r| r.texels),
-            reference_samples: bake.reference.as_ref().map_or(0, |r| r.samples),
-        }
-    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
