@@ -20,6 +20,7 @@ pub mod fixtures;
 pub mod gpu;
 pub mod import;
 pub mod limits;
+pub mod memory;
 pub mod output;
 pub mod plot;
 pub mod progress;
@@ -40,10 +41,9 @@ use anyhow::{Context, Result, bail};
 use config::{BakeOptions, Config, EnvironmentOptions};
 use environment::{EnvironmentMap, LightSet};
 use gpu::Gpu;
+use memory::MemoryProbe;
 use progress::Progress;
-use report::{
-    AtlasReport, EnvironmentReport, InputFile, MemoryProbe, OptionsReport, Report, SceneReport, StageTime, TexelReport,
-};
+use report::{AtlasReport, EnvironmentReport, InputFile, OptionsReport, Report, SceneReport, StageTime, TexelReport};
 use scene::Scene;
 use solve::Solution;
 use texelize::TexelSet;
