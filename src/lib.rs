@@ -405,7 +405,14 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
             .with_context(|| format!("input '{}'", input.display()))?;
         stages.extend(baked.stages.iter().cloned());
         let exported = stage(gpu, progress, &mut stages, &baked.scene.name, "export", |_| {
-            let stats = export::run(&baked, &config.bake.export, staging.dir())
+            let results = export::Input {
+                scene: &baked.scene,
+                atlas: &baked.atlas,
+                texels: &baked.texels,
+                lightmap: &baked.solution.lightmap,
+                uv1_reused: baked.uv1_reused,
+            };
+            let stats = export::run(&results, &config.bake.export, staging.dir())
                 .with_context(|| format!("input '{}': export", input.display()))?;
             let summary = format!("{} files", stats.files.len());
             Ok((stats, summary))
