@@ -234,7 +234,7 @@ impl Summary {
                     atlas: [s.atlas.width, s.atlas.height],
                     bounce_shots: s.bounce.as_ref().map_or(0, |b| b.shots),
                     bounce: match (&s.bounce, s.skipped.iter().find(|k| k.pass == "bounce")) {
-                        (Some(b), _) => b.stopped_by.clone(),
+                        (Some(b), _) => b.stopped_by.to_string(),
                         (None, Some(k)) => format!("left out: {}", k.reason),
                         (None, None) => "left out".to_string(),
                     },

@@ -153,8 +153,8 @@ pub struct BounceStats {
     /// probes at every trace point (a measurement, not part of the bake; the
     /// trace's clock leaves them out too).
     pub seconds: f64,
-    /// "converged", "max shots" or "max time".
-    pub stopped_by: String,
+    /// Why it stopped.
+    pub stopped_by: StopReason,
     /// Unshot power over the power put in when it stopped.
     pub unshot_fraction: f64,
     /// Closure the ambient term used: the share of the unshot power that
@@ -173,6 +173,32 @@ pub struct BounceStats {
     /// covered share (skipped where the scene catches little of its light).
     pub normalized: bool,
     pub trace: Vec<TracePoint>,
+}
+
+/// Why the bounce pass stopped. The report writes it as it always has
+/// ("converged", "max shots", "max time"), so its layout is unchanged.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum StopReason {
+    /// The weighted unshot power fell to `--tolerance` of the power put in,
+    /// or no patch had any left to shoot.
+    #[serde(rename = "converged")]
+    Converged,
+    /// `--max-shots` shots were taken.
+    #[serde(rename = "max shots")]
+    MaxShots,
+    /// `--max-time` ran out.
+    #[serde(rename = "max time")]
+    MaxTime,
+}
+
+impl std::fmt::Display for StopReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.pad(match self {
+            StopReason::Converged => "converged",
+            StopReason::MaxShots => "max shots",
+            StopReason::MaxTime => "max time",
+        })
+    }
 }
 
 /// Mirrors `BounceParams` in common.wgsl.
@@ -431,7 +457,7 @@ pub fn run(
     let mut trace = Vec::new();
     let mut shot_total = 0.0f64;
     let mut received_total = 0.0f64;
-    let mut stopped_by = "converged".to_string();
+    let mut stopped_by = StopReason::Converged;
     // Time spent reading back `--reference` probes, left out of the trace's clock.
     let mut probe_seconds = 0.0f64;
     let mut last;
@@ -479,11 +505,11 @@ pub fn run(
             break;
         }
         if shots >= max_shots {
-            stopped_by = "max shots".into();
+            stopped_by = StopReason::MaxShots;
             break;
         }
         if options.max_seconds.is_some_and(|max| start.elapsed().as_secs_f64() >= max) {
-            stopped_by = "max time".into();
+            stopped_by = StopReason::MaxTime;
             break;
         }
 
@@ -538,7 +564,7 @@ pub fn run(
     // onto the few texels a shot reached. Stopped by a budget, the
     // scene-covered share of each texel's hemisphere (from the direct pass),
     // weighted by its unshot power; without a direct pass, the measured one.
-    let converged = stopped_by == "converged";
+    let converged = stopped_by == StopReason::Converged;
     let closure = match coverage {
         Some(coverage) if !converged => covered_share(texels, &remaining, coverage),
         _ => measured_closure(received_total, shot_total),
