@@ -30,7 +30,7 @@ use bake::environment::{EnvironmentMap, LightMode, LightSet};
 use bake::fixtures::{TABLE4_STATUE_FREQUENCY, three_statues};
 use bake::gpu::Gpu;
 use bake::progress::Silent;
-use bake::report::{ReferenceCheck, reference_probes};
+use bake::reference::{ReferenceCheck, reference_probes};
 use bake::scene::Scene;
 use bake::solve::TracePoint;
 use bake::solve::patches::Sight;
@@ -390,7 +390,7 @@ fn grid(gpu: &Gpu, args: &Args, statues: &Statues, map: &Arc<EnvironmentMap>) ->
                     batches: direct.map_or(0, |d| d.batches),
                     patches: bounce.map_or(0, |b| b.patches),
                     shots: bounce.map_or(0, |b| b.shots),
-                    stopped_by: bounce.map_or("skipped".into(), |b| b.stopped_by.clone()),
+                    stopped_by: bounce.map_or("skipped".into(), |b| b.stopped_by.to_string()),
                     unshot: bounce.map_or(0.0, |b| b.unshot_fraction),
                     error,
                     trace: bounce.map_or(Vec::new(), |b| b.trace.clone()),

@@ -32,9 +32,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 
-use crate::report::{
-    EnergyStats, OLDEST_READABLE_VERSION, PrimitiveEnergy, Report, SCHEMA_VERSION, SceneReport, luminance,
-};
+use crate::colour::luminance;
+use crate::report::{EnergyStats, OLDEST_READABLE_VERSION, PrimitiveEnergy, Report, SCHEMA_VERSION, SceneReport};
 
 /// Exit code: every check passed.
 pub const EXIT_PASS: u8 = 0;

@@ -13,7 +13,8 @@ use crate::environment::LightMode;
 use crate::export::{ExportOptions, Format};
 use crate::import::ImportOptions;
 use crate::progress::LogMode;
-use crate::report::{ReferenceCheck, ReportOptions};
+use crate::reference::ReferenceCheck;
+use crate::report::ReportOptions;
 use crate::solve::{BounceOptions, SolveOptions};
 use crate::unwrap::{Backend, UnwrapOptions};
 

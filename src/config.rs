@@ -7,7 +7,7 @@ use crate::environment::LightMode;
 use crate::export::ExportOptions;
 use crate::import::ImportOptions;
 use crate::progress::LogMode;
-use crate::report::ReportOptions;
+use crate::report::{OptionsReport, ReportOptions};
 use crate::solve::SolveOptions;
 use crate::unwrap::UnwrapOptions;
 
@@ -45,7 +45,7 @@ pub struct BakeOptions {
     pub solve: SolveOptions,
     pub export: ExportOptions,
     /// `--reference`: estimate some texels with the CPU reference and trace the error at them.
-    pub reference: Option<crate::report::ReferenceCheck>,
+    pub reference: Option<crate::reference::ReferenceCheck>,
 }
 
 /// Everything one `bake` run needs.
@@ -68,4 +68,37 @@ pub struct Config {
     pub log: LogMode,
     /// What goes into report.json besides the bake, and whether to plot.
     pub report: ReportOptions,
+}
+
+/// The report's record of a run's options, written here rather than in
+/// report.rs so that the report's layout depends on no `Config`.
+impl From<&Config> for OptionsReport {
+    fn from(config: &Config) -> OptionsReport {
+        let env = &config.environment_options;
+        let bake = &config.bake;
+        OptionsReport {
+            arguments: config.report.arguments.clone(),
+            texels_per_unit: bake.unwrap.texels_per_unit,
+            max_atlas_size: bake.unwrap.max_atlas_size,
+            padding: bake.unwrap.padding,
+            unwrapper: bake.unwrap.backend.to_string(),
+            lights: env.lights.to_string(),
+            env_rotation_degrees: env.rotation_degrees,
+            env_intensity: env.intensity,
+            clamp_nonfinite: env.clamp_nonfinite,
+            light_batch_size: bake.solve.batch_size,
+            tolerance: bake.solve.bounce.tolerance,
+            max_shots: bake.solve.bounce.max_shots,
+            max_seconds: bake.solve.bounce.max_seconds,
+            patches: bake.solve.bounce.patches,
+            shooters_per_batch: bake.solve.bounce.shooters_per_batch,
+            hemicube_size: bake.solve.bounce.hemicube_size,
+            exposure: bake.export.exposure,
+            dilation: bake.export.dilation,
+            adapter: config.adapter.clone(),
+            plot: config.report.plot,
+            reference_texels: bake.reference.as_ref().map_or(0, |r| r.texels),
+            reference_samples: bake.reference.as_ref().map_or(0, |r| r.samples),
+        }
+    }
 }

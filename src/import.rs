@@ -550,7 +550,7 @@ fn see_through(json: &serde_json::Value, m: usize, parsed: &Material) -> Option<
 /// light, which is no albedo to bake again.
 fn material_before_a_bake(json: &serde_json::Value, mesh: usize, primitive: usize) -> Option<usize> {
     let variants = json.pointer("/extensions/KHR_materials_variants/variants")?.as_array()?;
-    let lightmapped = variants.iter().position(|v| v["name"] == crate::export::materials::VARIANT_LIGHTMAPPED)?;
+    let lightmapped = variants.iter().position(|v| v["name"] == crate::asset::VARIANT_LIGHTMAPPED)?;
     let pointer = format!("/meshes/{mesh}/primitives/{primitive}/extensions/KHR_materials_variants/mappings");
     let mappings = json.pointer(&pointer)?.as_array()?;
     let mapping = mappings

@@ -11,6 +11,7 @@
 pub mod asset;
 pub mod check;
 pub mod cli;
+pub mod colour;
 pub mod config;
 pub mod environment;
 pub mod export;
@@ -19,6 +20,7 @@ pub mod fixtures;
 pub mod gpu;
 pub mod import;
 pub mod limits;
+pub mod memory;
 pub mod output;
 pub mod plot;
 pub mod progress;
@@ -39,10 +41,9 @@ use anyhow::{Context, Result, bail};
 use config::{BakeOptions, Config, EnvironmentOptions};
 use environment::{EnvironmentMap, LightSet};
 use gpu::Gpu;
+use memory::MemoryProbe;
 use progress::Progress;
-use report::{
-    AtlasReport, EnvironmentReport, InputFile, MemoryProbe, OptionsReport, Report, SceneReport, StageTime, TexelReport,
-};
+use report::{AtlasReport, EnvironmentReport, InputFile, OptionsReport, Report, SceneReport, StageTime, TexelReport};
 use scene::Scene;
 use solve::Solution;
 use texelize::TexelSet;
@@ -171,7 +172,7 @@ pub fn bake_scene(
     if let Some(check) = &options.reference {
         let start = Instant::now();
         let (probes, noise) = stage(gpu, progress, &mut stages, &name, "reference", |_| {
-            let (probes, noise) = report::reference_probes(&scene, &texels, check);
+            let (probes, noise) = reference::reference_probes(&scene, &texels, check);
             let summary = format!(
                 "{} texels × {} paths on the CPU, noise {:.2}%",
                 probes.texels.len(),
@@ -404,7 +405,14 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
             .with_context(|| format!("input '{}'", input.display()))?;
         stages.extend(baked.stages.iter().cloned());
         let exported = stage(gpu, progress, &mut stages, &baked.scene.name, "export", |_| {
-            let stats = export::run(&baked, &config.bake.export, staging.dir())
+            let results = export::Input {
+                scene: &baked.scene,
+                atlas: &baked.atlas,
+                texels: &baked.texels,
+                lightmap: &baked.solution.lightmap,
+                uv1_reused: baked.uv1_reused,
+            };
+            let stats = export::run(&results, &config.bake.export, staging.dir())
                 .with_context(|| format!("input '{}': export", input.display()))?;
             let summary = format!("{} files", stats.files.len());
             Ok((stats, summary))
@@ -423,7 +431,7 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
         schema_version: report::SCHEMA_VERSION,
         bake_version: env!("CARGO_PKG_VERSION").to_string(),
         inputs,
-        options: OptionsReport::from_config(config),
+        options: OptionsReport::from(config),
         adapter: gpu.adapter.clone(),
         environment: environment.map(|(_, report)| report),
         scenes,

@@ -15,7 +15,8 @@ use std::time::{Duration, Instant};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 
-use crate::report::{Report, luminance};
+use crate::colour::luminance;
+use crate::report::Report;
 
 /// How progress is shown.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -233,7 +234,7 @@ impl Summary {
                     atlas: [s.atlas.width, s.atlas.height],
                     bounce_shots: s.bounce.as_ref().map_or(0, |b| b.shots),
                     bounce: match (&s.bounce, s.skipped.iter().find(|k| k.pass == "bounce")) {
-                        (Some(b), _) => b.stopped_by.clone(),
+                        (Some(b), _) => b.stopped_by.to_string(),
                         (None, Some(k)) => format!("left out: {}", k.reason),
                         (None, None) => "left out".to_string(),
                     },

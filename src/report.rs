@@ -16,12 +16,9 @@ use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
-use crate::config::Config;
-use crate::environment::EnvironmentMap;
-use crate::gpu::{AdapterDescription, Gpu};
-use crate::reference::{Reference, ReferenceOptions, ReferencePoint};
-use crate::scene::{PrimitiveKey, Scene};
-use crate::solve::bounce::Probes;
+use crate::colour::luminance;
+use crate::gpu::AdapterDescription;
+use crate::scene::PrimitiveKey;
 use crate::solve::{BounceStats, ContactStats, Skipped, Solution, direct::DirectStats, punctual::PunctualStats};
 use crate::texelize::TexelSet;
 
@@ -124,37 +121,6 @@ pub struct OptionsReport {
     pub reference_samples: u32,
 }
 
-impl OptionsReport {
-    pub fn from_config(config: &Config) -> OptionsReport {
-        let env = &config.environment_options;
-        let bake = &config.bake;
-        OptionsReport {
-            arguments: config.report.arguments.clone(),
-            texels_per_unit: bake.unwrap.texels_per_unit,
-            max_atlas_size: bake.unwrap.max_atlas_size,
-            padding: bake.unwrap.padding,
-            unwrapper: bake.unwrap.backend.to_string(),
-            lights: env.lights.to_string(),
-            env_rotation_degrees: env.rotation_degrees,
-            env_intensity: env.intensity,
-            clamp_nonfinite: env.clamp_nonfinite,
-            light_batch_size: bake.solve.batch_size,
-            tolerance: bake.solve.bounce.tolerance,
-            max_shots: bake.solve.bounce.max_shots,
-            max_seconds: bake.solve.bounce.max_seconds,
-            patches: bake.solve.bounce.patches,
-            shooters_per_batch: bake.solve.bounce.shooters_per_batch,
-            hemicube_size: bake.solve.bounce.hemicube_size,
-            exposure: bake.export.exposure,
-            dilation: bake.export.dilation,
-            adapter: config.adapter.clone(),
-            plot: config.report.plot,
-            reference_texels: bake.reference.as_ref().map_or(0, |r| r.texels),
-            reference_samples: bake.reference.as_ref().map_or(0, |r| r.samples),
-        }
-    }
-}
-
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct EnvironmentReport {
     pub path: PathBuf,
@@ -209,23 +175,6 @@ pub struct SceneReport {
     pub reference: Option<ReferenceReport>,
 }
 
-/// `--reference N`: N texels estimated by the CPU reference path tracer
-/// (`src/reference/`) before the solve; the trace records the bake's error
-/// at them as it converges.
-#[derive(Clone, Debug)]
-pub struct ReferenceCheck {
-    /// Texels to estimate (spread evenly over the covered texels with area).
-    pub texels: usize,
-    /// Paths per texel.
-    pub samples: u32,
-    /// The full-resolution environment, with its rotation and intensity. `run`
-    /// sets it; a library caller of `bake_scene` that bakes under an
-    /// environment must set it too (`None` traces against a black sky).
-    pub environment: Option<std::sync::Arc<EnvironmentMap>>,
-    pub env_rotation_degrees: f32,
-    pub env_intensity: f32,
-}
-
 /// What `--reference` measured.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct ReferenceReport {
@@ -240,53 +189,6 @@ pub struct ReferenceReport {
     pub noise: f64,
     /// Relative RMSE of the final lightmap at those texels.
     pub error: f64,
-}
-
-/// Estimates `check.texels` texels of `texels` with the CPU reference:
-/// the probes the bounce pass reads back, and the reference's relative noise.
-pub fn reference_probes(scene: &Scene, texels: &TexelSet, check: &ReferenceCheck) -> (Probes, f64) {
-    reference_probes_within(scene, texels, check, ReferenceOptions::default().max_bounces)
-}
-
-/// As [`reference_probes`], with light that reached the probes by more than
-/// `max_bounces` reflections left out (0: the direct light alone).
-pub fn reference_probes_within(
-    scene: &Scene,
-    texels: &TexelSet,
-    check: &ReferenceCheck,
-    max_bounces: u32,
-) -> (Probes, f64) {
-    let candidates: Vec<u32> =
-        (0..texels.texels.len() as u32).filter(|&i| texels.texels[i as usize].area > 0.0).collect();
-    let n = check.texels.min(candidates.len());
-    let chosen: Vec<u32> = (0..n).map(|k| candidates[(2 * k + 1) * candidates.len() / (2 * n)]).collect();
-    let points: Vec<ReferencePoint> = chosen
-        .iter()
-        .map(|&i| {
-            let t = &texels.texels[i as usize];
-            ReferencePoint { position: t.position, normal: t.normal, face_normal: Some(t.face_normal) }
-        })
-        .collect();
-    let options = ReferenceOptions {
-        samples: check.samples,
-        env_rotation_degrees: check.env_rotation_degrees,
-        env_intensity: check.env_intensity,
-        max_bounces,
-        ..ReferenceOptions::default()
-    };
-    let estimates = Reference::new(scene, check.environment.as_deref(), &options).estimate(&points);
-    let (mut variance, mut sum) = (0.0f64, 0.0f64);
-    for e in &estimates {
-        for c in 0..3 {
-            if e.std_error[c].is_finite() {
-                variance += e.std_error[c].powi(2);
-            }
-            sum += e.lightmap[c];
-        }
-    }
-    let count = (3 * estimates.len()).max(1) as f64;
-    let noise = if sum > 0.0 { (variance / count).sqrt() / (sum / count) } else { 0.0 };
-    (Probes { texels: chosen, reference: estimates.iter().map(|e| e.lightmap).collect() }, noise)
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -315,47 +217,6 @@ pub struct StageMemory {
     /// bound of its peak); `None` where the backend gives no report.
     pub gpu_peak_bytes: Option<u64>,
     pub gpu_after_bytes: Option<u64>,
-}
-
-/// Measures one stage's memory: `start` before it, `finish` after.
-pub struct MemoryProbe {
-    rss_before: u64,
-    reset: bool,
-}
-
-impl MemoryProbe {
-    /// Records the resident set and resets the high-water marks (CPU and GPU).
-    pub fn start(gpu: Option<&Gpu>) -> Option<MemoryProbe> {
-        let (rss_before, _) = read_rss()?;
-        let reset = std::fs::write("/proc/self/clear_refs", "5").is_ok();
-        if let Some(gpu) = gpu {
-            gpu.take_memory_peak();
-        }
-        Some(MemoryProbe { rss_before, reset })
-    }
-
-    pub fn finish(self, gpu: Option<&Gpu>) -> Option<StageMemory> {
-        let (rss_after, peak) = read_rss()?;
-        Some(StageMemory {
-            rss_before_bytes: self.rss_before,
-            rss_after_bytes: rss_after,
-            peak_rss_bytes: peak.max(rss_after).max(if self.reset { 0 } else { self.rss_before }),
-            peak_rss_scope: if self.reset { "stage" } else { "process" }.to_string(),
-            gpu_peak_bytes: gpu.and_then(Gpu::take_memory_peak),
-            gpu_after_bytes: gpu.and_then(Gpu::memory_in_use),
-        })
-    }
-}
-
-/// (VmRSS, VmHWM) in bytes from `/proc/self/status`.
-fn read_rss() -> Option<(u64, u64)> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let field = |name: &str| -> Option<u64> {
-        let line = status.lines().find(|l| l.starts_with(name))?;
-        let kib: u64 = line[name.len()..].trim().trim_end_matches("kB").trim().parse().ok()?;
-        Some(kib * 1024)
-    };
-    Some((field("VmRSS:")?, field("VmHWM:")?))
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -451,10 +312,6 @@ pub struct EnergyStats {
     /// Smallest and largest texel albedo, RGB ([0, 0, 0] without texels).
     pub albedo_min: [f64; 3],
     pub albedo_max: [f64; 3],
-}
-
-pub fn luminance(c: [f64; 3]) -> f64 {
-    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
 }
 
 /// Accumulates `EnergyStats` texel by texel.

@@ -16,7 +16,7 @@ use glam::Vec3;
 use bake::config::BakeOptions;
 use bake::environment::{EnvironmentMap, LightSet};
 use bake::gpu::Gpu;
-use bake::report::{ReferenceCheck, reference_probes_within};
+use bake::reference::{ReferenceCheck, reference_probes_within};
 use bake::scene::Scene;
 use bake::texelize::{Texel, TexelSet};
 

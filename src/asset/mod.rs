@@ -41,6 +41,12 @@ const SUPPORTED_REQUIRED: &[&str] = &[
 /// WebP and KTX2 (Basis Universal) and carries AVIF through.
 const IMAGE_FORMAT_EXTENSIONS: &[&str] = &["EXT_texture_webp", "EXT_texture_avif", "KHR_texture_basisu"];
 
+/// Names of the two KHR_materials_variants variants a bake appends, in that
+/// order (README, "Using the lightmap in an engine"). Export writes them;
+/// import reads them back to find the material a baked file had before.
+pub const VARIANT_BAKED: &str = "baked";
+pub const VARIANT_LIGHTMAPPED: &str = "pbr+lightmap";
+
 /// A glTF asset loaded from `.gltf` or `.glb`.
 pub struct SourceAsset {
     /// Where it came from (for messages).

@@ -48,7 +48,8 @@ use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 use std::f64::consts::PI;
 
-use super::{EnvironmentMap, Light, LightMode, LightSet, cos_diff, luminance, normalize3, rotate_direction};
+use super::{EnvironmentMap, Light, LightMode, LightSet, cos_diff, normalize3, rotate_direction};
+use crate::colour::luminance;
 
 /// Grid cells at most, for the budget mode's tables (≈ 2 M cells: 64 MiB of f64 sums).
 const MAX_GRID_CELLS: usize = 1 << 21;

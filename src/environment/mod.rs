@@ -47,11 +47,6 @@ pub use load::EnvLoadError;
 pub(crate) use load::check_exr_size;
 pub use write::{ExrPrecision, write_exr, write_hdr};
 
-/// Rec. 709 / sRGB-primaries luminance of linear RGB: `0.2126 R + 0.7152 G + 0.0722 B`.
-pub fn luminance(rgb: [f32; 3]) -> f64 {
-    0.2126 * rgb[0] as f64 + 0.7152 * rgb[1] as f64 + 0.0722 * rgb[2] as f64
-}
-
 /// Linear, scene-referred radiance in an equirectangular layout, row 0 at the zenith (+Y).
 ///
 /// See the module documentation for the direction ↔ pixel convention. Maps read from files are

@@ -18,7 +18,6 @@
 use anyhow::{Context, Result};
 
 use super::seams::{self, SeamEdge, StitchStats};
-use crate::solve::Solution;
 use crate::texelize::TexelSet;
 
 /// An RGB f32 image, row-major, with a per-texel "written" mask and the
@@ -220,22 +219,23 @@ pub fn linear_to_srgb8(linear: f32) -> u8 {
 
 /// The HDR lightmap (L_lm per texel) and the baked beauty image
 /// (albedo·L_lm + emission), both dilated by `rings` texels, then stitched
-/// along `seams`; with what dilation and stitching did. `as_emission[p]`
-/// says that primitive `p`'s baked material shows the image as emission.
+/// along `seams`; with what dilation and stitching did. `values` holds L_lm
+/// per texel of `texels`; `as_emission[p]` says that primitive `p`'s baked
+/// material shows the image as emission.
 pub fn images(
     texels: &TexelSet,
-    solution: &Solution,
+    values: &[[f32; 3]],
     as_emission: &[bool],
     rings: u32,
     seams: &[SeamEdge],
 ) -> (Image, Image, Fixups) {
-    let mut lightmap = Image::from_texels(texels, |i| solution.lightmap[i]);
+    let mut lightmap = Image::from_texels(texels, |i| values[i]);
     // A viewer multiplies a base colour texture by the primitive's COLOR_0,
     // so there the texture holds the albedo without it (and the emission
     // divided by it, where it is not near black). Emission it leaves alone.
     let mut beauty = Image::from_texels(texels, |i| {
         let t = &texels.texels[i];
-        let l = solution.lightmap[i];
+        let l = values[i];
         let multiplied = !as_emission.get(t.primitive as usize).copied().unwrap_or(false);
         let tint = texels.tint.get(i).copied().filter(|_| multiplied).unwrap_or([1.0; 3]);
         [0, 1, 2].map(|c| {

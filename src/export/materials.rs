@@ -31,10 +31,7 @@ use serde_json::{Map, Value, json};
 
 use super::document::Document;
 use super::primitives::Rewritten;
-
-/// Names of the two variants, in the order they are appended.
-pub const VARIANT_BAKED: &str = "baked";
-pub const VARIANT_LIGHTMAPPED: &str = "pbr+lightmap";
+use crate::asset::{VARIANT_BAKED, VARIANT_LIGHTMAPPED};
 
 /// The textures the materials use.
 #[derive(Clone, Copy, Debug)]

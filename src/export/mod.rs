@@ -26,8 +26,10 @@ use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 
-use crate::Baked;
 use crate::asset::SourceAsset;
+use crate::scene::Scene;
+use crate::texelize::TexelSet;
+use crate::unwrap::Atlas;
 use document::Document;
 pub use document::Format;
 
@@ -63,16 +65,27 @@ pub struct ExportStats {
     pub notices: Vec<String>,
 }
 
+/// What export writes out: the scene and the earlier stages' results.
+pub struct Input<'a> {
+    pub scene: &'a Scene,
+    pub atlas: &'a Atlas,
+    pub texels: &'a TexelSet,
+    /// L_lm per texel of `texels`, linear RGB (the solve's lightmap).
+    pub lightmap: &'a [[f32; 3]],
+    /// The atlas is the input's own TEXCOORD_1 (`--keep-uv1`), not a new unwrap.
+    pub uv1_reused: bool,
+}
+
 /// Writes the baked scene into `dir` (which must not hold these files yet)
 /// and returns what was written.
-pub fn run(baked: &Baked, options: &ExportOptions, dir: &Path) -> Result<ExportStats> {
-    let (scene, atlas) = (&baked.scene, &baked.atlas);
+pub fn run(baked: &Input, options: &ExportOptions, dir: &Path) -> Result<ExportStats> {
+    let (scene, atlas) = (baked.scene, baked.atlas);
     let seam_edges = seams::find(scene, atlas);
     let material_json = |m: Option<usize>| m.and_then(|m| scene.source.json["materials"].get(m));
     let as_emission: Vec<bool> =
         scene.primitives.iter().map(|p| material_json(p.material).is_some_and(materials::alpha_from_texture)).collect();
     let (lightmap, beauty, fixups) =
-        lightmap::images(&baked.texels, &baked.solution, &as_emission, options.dilation, &seam_edges);
+        lightmap::images(baked.texels, baked.lightmap, &as_emission, options.dilation, &seam_edges);
     lightmap.check_shippable()?;
     let exr_name = format!("{}.lightmap0.exr", scene.name);
     let exr = lightmap.encode_exr()?;

@@ -177,10 +177,7 @@ fn rows(image: &Image, seams: &[SeamEdge]) -> Vec<Row> {
 
 /// Relative luminance difference of the two sides over the sample pairs.
 fn error(image: &Image, rows: &[Row]) -> SeamError {
-    let luminance = |i: usize| {
-        let p = image.pixels[i];
-        0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64
-    };
+    let luminance = |i: usize| crate::colour::luminance(image.pixels[i]);
     let (mut sum, mut max, mut count) = (0.0, 0.0f64, 0usize);
     for row in rows {
         let difference: f64 = row.iter().map(|&(i, w)| w * luminance(i)).sum();

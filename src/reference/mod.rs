@@ -101,6 +101,7 @@
 //! on the number of threads.
 
 mod bvh;
+mod probes;
 mod sampling;
 mod texture;
 mod trace;
@@ -113,6 +114,7 @@ use rayon::prelude::*;
 use crate::environment::EnvironmentMap;
 use crate::scene::{LinearImage, PunctualLight, Scene, ScenePrimitive, TextureRef};
 use bvh::{Bvh, NO_TEXCOORDS, Triangle};
+pub use probes::{Probes, ReferenceCheck, reference_probes, reference_probes_within};
 use sampling::EnvSampler;
 pub(crate) use sampling::{Rng, basis, cosine_hemisphere};
 use texture::Texture;

@@ -29,6 +29,7 @@ use std::f64::consts::{PI, TAU};
 
 use glam::DVec3;
 
+use crate::colour::luminance;
 use crate::environment::EnvironmentMap;
 
 /// PCG-XSH-RR 64/32 (O'Neill 2014) with a selectable stream: small, fast and
@@ -98,11 +99,6 @@ pub(crate) fn cosine_hemisphere(n: DVec3, u1: f64, u2: f64) -> (DVec3, f64) {
     let (t, b) = basis(n);
     let d = (t * (r * phi.cos()) + b * (r * phi.sin()) + n * z).normalize();
     (d, d.dot(n))
-}
-
-/// Luminance weights (Rec. 709 / sRGB primaries) used to importance-sample.
-fn luminance(c: [f32; 3]) -> f64 {
-    0.2126 * c[0] as f64 + 0.7152 * c[1] as f64 + 0.0722 * c[2] as f64
 }
 
 /// The sampling weight of a pixel of luminance `lum` when `mean` is left to

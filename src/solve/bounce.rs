@@ -52,7 +52,9 @@ use super::casters::{Casters, Topology};
 use super::hemicube_cull::HemicubeCull;
 use super::patches::Patches;
 use super::shooter_cull::{self, ShooterCull};
+use crate::colour::luminance;
 use crate::gpu::{self, Gpu, Shader, read_buffer};
+use crate::reference::Probes;
 use crate::scene::Scene;
 use crate::texelize::{Texel, TexelSet};
 
@@ -107,37 +109,6 @@ pub struct BounceOptions {
     pub probes: Option<std::sync::Arc<Probes>>,
 }
 
-/// Texels with reference values (`--reference`): at every trace point their
-/// current lightmap values are read back (a few bytes each) and compared.
-#[derive(Clone, Debug, Default)]
-pub struct Probes {
-    /// Indices into `TexelSet::texels`.
-    pub texels: Vec<u32>,
-    /// Reference L_lm of each, linear RGB.
-    pub reference: Vec<[f64; 3]>,
-}
-
-impl Probes {
-    /// Relative RMSE of `values` against the reference: the root mean
-    /// squared difference over texels and channels, over the reference's mean.
-    pub fn relative_rmse(&self, values: impl Iterator<Item = [f64; 3]>) -> f64 {
-        let (mut squared, mut sum, mut n) = (0.0f64, 0.0f64, 0usize);
-        for (value, reference) in values.zip(&self.reference) {
-            for c in 0..3 {
-                squared += (value[c] - reference[c]).powi(2);
-                sum += reference[c];
-                n += 1;
-            }
-        }
-        if n == 0 || sum <= 0.0 { 0.0 } else { (squared / n as f64).sqrt() / (sum / n as f64) }
-    }
-
-    /// `relative_rmse` of a whole lightmap (L_lm per texel) at the probes.
-    pub fn lightmap_error(&self, lightmap: &[[f32; 3]]) -> f64 {
-        self.relative_rmse(self.texels.iter().map(|&i| lightmap[i as usize].map(|v| v as f64)))
-    }
-}
-
 impl Default for BounceOptions {
     fn default() -> Self {
         BounceOptions {
@@ -182,8 +153,8 @@ pub struct BounceStats {
     /// probes at every trace point (a measurement, not part of the bake; the
     /// trace's clock leaves them out too).
     pub seconds: f64,
-    /// "converged", "max shots" or "max time".
-    pub stopped_by: String,
+    /// Why it stopped.
+    pub stopped_by: StopReason,
     /// Unshot power over the power put in when it stopped.
     pub unshot_fraction: f64,
     /// Closure the ambient term used: the share of the unshot power that
@@ -202,6 +173,32 @@ pub struct BounceStats {
     /// covered share (skipped where the scene catches little of its light).
     pub normalized: bool,
     pub trace: Vec<TracePoint>,
+}
+
+/// Why the bounce pass stopped. The report writes it as it always has
+/// ("converged", "max shots", "max time"), so its layout is unchanged.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum StopReason {
+    /// The weighted unshot power fell to `--tolerance` of the power put in,
+    /// or no patch had any left to shoot.
+    #[serde(rename = "converged")]
+    Converged,
+    /// `--max-shots` shots were taken.
+    #[serde(rename = "max shots")]
+    MaxShots,
+    /// `--max-time` ran out.
+    #[serde(rename = "max time")]
+    MaxTime,
+}
+
+impl std::fmt::Display for StopReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.pad(match self {
+            StopReason::Converged => "converged",
+            StopReason::MaxShots => "max shots",
+            StopReason::MaxTime => "max time",
+        })
+    }
 }
 
 /// Mirrors `BounceParams` in common.wgsl.
@@ -280,10 +277,6 @@ struct GpuStats {
     shooters: u32,
     landing: f32,
     _pad: [u32; 2],
-}
-
-fn luminance(c: [f64; 3]) -> f64 {
-    crate::report::luminance(c)
 }
 
 /// Everything the bounce pass binds, created once.
@@ -464,7 +457,7 @@ pub fn run(
     let mut trace = Vec::new();
     let mut shot_total = 0.0f64;
     let mut received_total = 0.0f64;
-    let mut stopped_by = "converged".to_string();
+    let mut stopped_by = StopReason::Converged;
     // Time spent reading back `--reference` probes, left out of the trace's clock.
     let mut probe_seconds = 0.0f64;
     let mut last;
@@ -512,11 +505,11 @@ pub fn run(
             break;
         }
         if shots >= max_shots {
-            stopped_by = "max shots".into();
+            stopped_by = StopReason::MaxShots;
             break;
         }
         if options.max_seconds.is_some_and(|max| start.elapsed().as_secs_f64() >= max) {
-            stopped_by = "max time".into();
+            stopped_by = StopReason::MaxTime;
             break;
         }
 
@@ -571,7 +564,7 @@ pub fn run(
     // onto the few texels a shot reached. Stopped by a budget, the
     // scene-covered share of each texel's hemisphere (from the direct pass),
     // weighted by its unshot power; without a direct pass, the measured one.
-    let converged = stopped_by == "converged";
+    let converged = stopped_by == StopReason::Converged;
     let closure = match coverage {
         Some(coverage) if !converged => covered_share(texels, &remaining, coverage),
         _ => measured_closure(received_total, shot_total),

@@ -22,7 +22,8 @@ use serde::{Deserialize, Serialize};
 
 use super::SolveOptions;
 use super::occluders::OccluderPass;
-use crate::environment::{Light, LightSet, luminance};
+use crate::colour::luminance;
+use crate::environment::{Light, LightSet};
 use crate::gpu::{self, Gpu, Shader, read_buffer};
 use crate::scene::Scene;
 use crate::texelize::{Texel, TexelSet};

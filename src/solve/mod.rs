@@ -31,7 +31,7 @@ use crate::gpu::Gpu;
 use crate::reference::Occluders;
 use crate::scene::Scene;
 use crate::texelize::{Texel, TexelSet};
-pub use bounce::{BounceOptions, BounceStats, TracePoint};
+pub use bounce::{BounceOptions, BounceStats, StopReason, TracePoint};
 pub use contact::ContactStats;
 use overlaps::Overlaps;
 use punctual::{Punctual, PunctualStats};

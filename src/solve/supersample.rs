@@ -21,7 +21,7 @@
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use crate::environment::luminance;
+use crate::colour::luminance;
 use crate::reference::Occluders;
 use crate::texelize::{Texel, TexelSet};
 

@@ -7,8 +7,9 @@ use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use bake::colour::luminance;
 use bake::environment::{
-    EnvLoadOptions, EnvironmentMap, ExrPrecision, Light, LightMode, LightSet, luminance, write_exr, write_hdr,
+    EnvLoadOptions, EnvironmentMap, ExrPrecision, Light, LightMode, LightSet, write_exr, write_hdr,
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -743,16 +744,11 @@ fn real_sunrise_sun_is_one_small_light() {
     let map = EnvironmentMap::load(p, &default_opts()).unwrap().map;
     let set = LightSet::extract(&map, LightMode::Budget { count: 256 }, 0.0, 1.0);
     let sun = brightest(&set);
-    let frac = light_lum_energy(sun) / luminance_of(set.map_integral);
+    let frac = light_lum_energy(sun) / luminance(set.map_integral);
     // The sun holds about half of this capture's energy; its light must be a few pixels big.
     assert!(frac > 0.4, "sun light holds only {frac}");
     assert!(sun.solid_angle < 1e-3, "sun light Ω {}", sun.solid_angle);
 }
-
-fn luminance_of(e: [f64; 3]) -> f64 {
-    0.2126 * e[0] + 0.7152 * e[1] + 0.0722 * e[2]
-}
-
 #[test]
 fn extraction_is_fast_on_a_1024_map() {
     // Not a benchmark: catches accidental per-light passes over the image (those take minutes).

@@ -358,7 +358,7 @@ fn a_nearly_white_closed_room_stays_bounded_and_reports_its_error() {
     let room = nearly_white_room();
     assert!(room.brightest <= 1.05 * expected, "a texel has {}, above the converged {expected}", room.brightest);
     assert!(room.darkest >= 0.95 * expected, "a texel has {}, below the converged {expected}", room.darkest);
-    assert_eq!(room.bounce.stopped_by, "max shots");
+    assert_eq!(room.bounce.stopped_by, bake::solve::StopReason::MaxShots);
     assert!(room.bounce.unshot_fraction > 0.5, "unshot {}", room.bounce.unshot_fraction);
     let estimate = room.bounce.trace.last().unwrap().error_estimate;
     let actual = (expected - room.mean).abs() / room.mean;

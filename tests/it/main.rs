@@ -18,6 +18,7 @@ mod fixtures;
 mod furnace;
 mod gltfpack;
 mod horizon;
+mod imports;
 mod instancing;
 mod ktx2;
 mod leaks;

@@ -269,7 +269,7 @@ fn vertex_coloured_closed_room_reaches_le_over_one_minus_rho_and_bakes_its_textu
         eprintln!("channel {c}: mean L_lm {mean:.4}, expected {:.4}", expected[c]);
         assert!((mean / expected[c] - 1.0).abs() < 0.03, "channel {c}: {mean:.4} against {:.4}", expected[c]);
     }
-    let (_, beauty, _) = bake::export::lightmap::images(&baked.texels, &baked.solution, &[], 0, &[]);
+    let (_, beauty, _) = bake::export::lightmap::images(&baked.texels, &baked.solution.lightmap, &[], 0, &[]);
     let (t, l) = baked.texels.texels.iter().zip(&baked.solution.lightmap).find(|(t, _)| t.area > 0.0).unwrap();
     let stored = beauty.pixels[t.index as usize];
     for c in 0..3 {
@@ -278,7 +278,7 @@ fn vertex_coloured_closed_room_reaches_le_over_one_minus_rho_and_bakes_its_textu
     }
     // Shown as emission (a cut-out's baked form), which viewers do not
     // multiply by COLOR_0, the texture holds the whole value.
-    let (_, emission, _) = bake::export::lightmap::images(&baked.texels, &baked.solution, &[true], 0, &[]);
+    let (_, emission, _) = bake::export::lightmap::images(&baked.texels, &baked.solution.lightmap, &[true], 0, &[]);
     let stored = emission.pixels[t.index as usize];
     for c in 0..3 {
         let expected = 0.8 * tint[c] * l[c] + le;

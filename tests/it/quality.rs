@@ -16,7 +16,7 @@ use glam::{Vec2, Vec3};
 fn exported(baked: &Baked, stitch: bool) -> (Image, Vec<seams::SeamEdge>) {
     let edges = seams::find(&baked.scene, &baked.atlas);
     let used = if stitch { edges.clone() } else { Vec::new() };
-    let (image, _, _) = lightmap::images(&baked.texels, &baked.solution, &[], 4, &used);
+    let (image, _, _) = lightmap::images(&baked.texels, &baked.solution.lightmap, &[], 4, &used);
     (image, edges)
 }
 

@@ -91,7 +91,7 @@ fn a_converged_closed_room_counts_the_light_it_had_left_to_shoot() {
     let rho = 0.8f32;
     let baked = bake_emitters(&room([(rho, 1.0); 6]), 96, |_| {});
     let bounce = baked.solution.bounce.as_ref().expect("the bounce pass ran");
-    assert_eq!(bounce.stopped_by, "converged");
+    assert_eq!(bounce.stopped_by, bake::solve::StopReason::Converged);
     let mean = area_mean(&baked, &[0, 1, 2, 3, 4, 5], |i| baked.solution.lightmap[i][0]);
     let expected = 1.0 / (1.0 - rho as f64);
     eprintln!(

@@ -174,7 +174,7 @@ fn the_report_records_inputs_options_memory_and_energy() {
         assert_eq!(s.power_emitted, [0.0; 3]);
     }
     let direct = scene.direct.as_ref().unwrap();
-    assert!(bake::report::luminance(direct.power_received) < bake::report::luminance(atlas.power_received));
+    assert!(bake::colour::luminance(direct.power_received) < bake::colour::luminance(atlas.power_received));
     let balance = bake::check::energy_balance(scene).expect("the energy balance holds");
     eprintln!("{balance:?}");
 }
@@ -307,4 +307,27 @@ fn the_plotted_trace_ends_at_the_error_the_report_gives_after_the_contact_fix_up
 
 fn errors_of(validator: &jsonschema::Validator, report: &Value) -> Vec<String> {
     errors(validator, report)
+}
+
+#[test]
+fn stop_reasons_are_written_as_the_schema_lists_them() {
+    use bake::solve::StopReason;
+    let reasons = [StopReason::Converged, StopReason::MaxShots, StopReason::MaxTime];
+    let written: Vec<Value> = reasons.iter().map(|r| serde_json::to_value(r).unwrap()).collect();
+    let schema = schema();
+    let listed = find_key(&schema, "stopped_by").expect("the schema has stopped_by");
+    assert_eq!(&Value::from(written.clone()), &listed["enum"]);
+    for (reason, value) in reasons.iter().zip(&written) {
+        assert_eq!(value.as_str(), Some(reason.to_string().as_str()), "the summary shows what the report says");
+        assert_eq!(serde_json::from_value::<StopReason>(value.clone()).unwrap(), *reason);
+    }
+}
+
+/// The first value under `key` anywhere in `value`.
+fn find_key<'v>(value: &'v Value, key: &str) -> Option<&'v Value> {
+    match value {
+        Value::Object(map) => map.get(key).or_else(|| map.values().find_map(|v| find_key(v, key))),
+        Value::Array(items) => items.iter().find_map(|v| find_key(v, key)),
+        _ => None,
+    }
 }
