@@ -100,6 +100,9 @@ fn mutate(from: &Path, to: &Path, change: impl FnOnce(&mut Value, &mut Vec<u8>))
     std::fs::write(to, bake::export::glb::encode(&serde_json::to_vec(&json).unwrap(), &bin)).unwrap();
 }
 
+/// A change to a GLB's JSON and binary chunk.
+type Change = Box<dyn Fn(&mut Value, &mut Vec<u8>)>;
+
 /// Every material's MOZ_lightmap extension.
 fn lightmaps(json: &mut Value) -> Vec<&mut Value> {
     let materials = json["materials"].as_array_mut().unwrap();
@@ -141,7 +144,7 @@ fn three_and_babylon_draw_the_lightmapped_pbr_form_as_the_preview() {
     let mut json: Value =
         serde_json::from_slice(&gltf::binary::Glb::from_slice(&std::fs::read(&baked).unwrap()).unwrap().json).unwrap();
     let intensity = lightmaps(&mut json)[0]["intensity"].as_f64().unwrap();
-    let mutations: [(&str, Box<dyn Fn(&mut Value, &mut Vec<u8>)>); 3] = [
+    let mutations: [(&str, Change); 3] = [
         (
             "intensity_ignored",
             Box::new(|json, _| lightmaps(json).into_iter().for_each(|l| l["intensity"] = 1.0.into())),
