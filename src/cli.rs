@@ -10,7 +10,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 use crate::check::{self, CheckOptions};
 use crate::config::{BakeOptions, Config, EnvironmentOptions};
 use crate::environment::LightMode;
-use crate::export::{ExportOptions, Format};
+use crate::export::{ExportOptions, Format, MaterialDefault};
 use crate::import::ImportOptions;
 use crate::progress::LogMode;
 use crate::reference::ReferenceCheck;
@@ -21,9 +21,10 @@ use crate::unwrap::{Backend, UnwrapOptions};
 /// Bake diffuse global illumination from an HDR environment into glTF lightmaps.
 ///
 /// Each input gets `OUT/<name>.glb` (TEXCOORD_1 plus the baked lighting, shown
-/// by any glTF viewer; the input's own material with an RGBM lightmap one
-/// KHR_materials_variants variant away) and `OUT/<name>.lightmap0.exr` (the
-/// HDR lightmap, L_lm = E/π per texel); the run writes `OUT/report.json`.
+/// by any glTF viewer; the input's own material with the lightmap as
+/// MOZ_lightmap one KHR_materials_variants variant away, or the other way
+/// round with `--material engine`) and `OUT/<name>.lightmap0.exr` (the HDR
+/// lightmap, L_lm = E/π per texel); the run writes `OUT/report.json`.
 /// Outputs appear only when the whole run succeeds; inputs are never modified.
 /// `bake check` compares a bake's report with a golden one (see `bake check --help`).
 ///
@@ -133,6 +134,12 @@ pub struct Args {
     /// Output packaging: `glb` (one file, images embedded) or `gltf` (NAME.gltf + NAME.bin + image files)
     #[arg(long, value_name = "FORMAT", default_value_t = Format::default())]
     pub format: Format,
+
+    /// The material baked primitives draw by default: `preview` (unlit with the baked colour, what every glTF
+    /// viewer shows exactly) or `engine` (the input's PBR material with the lightmap as MOZ_lightmap, for a
+    /// pipeline that feeds an engine); the other form stays a KHR_materials_variants variant
+    #[arg(long, value_name = "FORM", default_value_t = MaterialDefault::default())]
+    pub material: MaterialDefault,
 
     /// Bake into the input's own TEXCOORD_1 when every primitive has one inside [0, 1] with no
     /// overlapping triangles; otherwise unwrap as usual, with a notice saying what failed
@@ -296,7 +303,12 @@ impl Args {
                     },
                     ..SolveOptions::default()
                 },
-                export: ExportOptions { exposure: self.exposure, format: self.format, ..ExportOptions::default() },
+                export: ExportOptions {
+                    exposure: self.exposure,
+                    format: self.format,
+                    material: self.material,
+                    ..ExportOptions::default()
+                },
                 reference: self.reference.map(|texels| ReferenceCheck {
                     texels,
                     samples: self.reference_samples,
@@ -334,6 +346,7 @@ mod tests {
         assert_eq!(config.environment_options.intensity, 1.0);
         assert_eq!(config.bake.export.exposure, 0.0);
         assert_eq!(config.bake.export.format, Format::Glb);
+        assert_eq!(config.bake.export.material, MaterialDefault::Preview);
         assert!(!config.bake.keep_uv1);
         assert_eq!(config.bake.solve.bounce.tolerance, 0.01);
         assert_eq!(config.bake.solve.bounce.max_shots, None);
@@ -386,6 +399,8 @@ mod tests {
             "--keep-uv1",
             "--max-triangles",
             "123",
+            "--material",
+            "engine",
         ])
         .unwrap();
         assert_eq!(config.inputs.len(), 2);
@@ -410,6 +425,8 @@ mod tests {
         assert_eq!(config.bake.export.format, Format::Gltf);
         assert!(config.bake.keep_uv1);
         assert_eq!(config.import.max_triangles, 123);
+        assert_eq!(config.bake.export.material, MaterialDefault::Engine);
+        assert_eq!(parse(&["a.glb", "--material", "preview"]).unwrap().bake.export.material, MaterialDefault::Preview);
         assert_eq!(parse(&["a.glb", "-q"]).unwrap().log, LogMode::Quiet);
     }
 
@@ -456,6 +473,7 @@ mod tests {
             &["a.glb", "--lights", "sphere:3"],
             &["a.glb", "--unwrapper", "magic"],
             &["a.glb", "--format", "obj"],
+            &["a.glb", "--material", "pbr"],
             &["a.glb", "--max-shots", "-1"],
             &["a.glb", "--reference", "0"],
             &["a.glb", "--max-triangles", "0"],

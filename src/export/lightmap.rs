@@ -1,19 +1,28 @@
 //! Lightmap images from the solution: the HDR lightmap (L_lm per texel), the
 //! "baked" beauty image (albedo·L_lm + emission) a viewer shows, dilation
-//! into chart padding, and their encodings (EXR, 8-bit sRGB PNG, RGBM PNG).
+//! into chart padding, and their encodings (EXR, 8-bit sRGB PNG, and the
+//! 8-bit linear irradiance PNG `MOZ_lightmap` points at).
 //!
-//! RGBM (8-bit RGBA PNG, raw codes, no sRGB transfer), with the atlas-wide
-//! range `R` recorded beside it:
+//! The `MOZ_lightmap` texture is written the way its readers read it (README,
+//! "Using the lightmap in an engine"): Hubs' `GLTFHubsLightMapExtension`
+//! (mozilla/hubs `src/components/gltf-model-plus.js`) and three.js's
+//! `GLTFLightMapLoaderExtension` addon
+//! (`examples/jsm/loaders/GLTFLightMapLoaderExtension.js`) take the texture
+//! as linear RGB into `material.lightMap` and `intensity` as
+//! `lightMapIntensity`; three.js shades `lightMap` as irradiance E (× albedo/π).
+//! Its `GLTFLightMapExporterExtension`
+//! (`examples/jsm/exporters/GLTFLightMapExporterExtension.js`) writes a float
+//! light map the same way as here: each channel divided by the map's largest
+//! value s and rounded to an 8-bit code, s in `intensity` (it starts s at 1;
+//! here s is the peak itself, so a dim map keeps its 8 bits):
 //!
 //! ```text
-//! L_lm = R · (A / 255) · (RGB / 255)
+//! E = π · L_lm = intensity · RGB / 255
 //! ```
 //!
-//! `A` is the smallest code with `R·A/255 ≥ max(r, g, b)`, so nothing clips,
-//! and each channel is rounded to the nearest code: a decoded channel is
-//! within half a step, `R·A / (2·255²)`, of the float value, which is at most
-//! `(max(r, g, b) + R/255) / 510`: 8-bit precision relative to the texel's
-//! brightest channel down to R/255, an absolute `R/65025` below that.
+//! s is the atlas's brightest channel of E rounded up to 4 significant digits
+//! (`irradiance_scale`), so nothing clips and the JSON number is short and
+//! reproducible. Each channel is within half a code, `s / 510`, of E.
 
 use anyhow::{Context, Result};
 
@@ -160,37 +169,25 @@ impl Image {
     }
 }
 
-/// The RGBM range for an image whose brightest channel is `peak`: `peak`
-/// rounded up to 4 significant digits (so the JSON number is short and
-/// exact), 1 for a black or non-finite image.
-pub fn rgbm_range(peak: f32) -> f64 {
+/// `peak` rounded up to 4 significant digits (so the JSON number is short and
+/// exact), 1 for a black or non-finite image: the scale s of the irradiance
+/// PNG for a map whose brightest channel of E is `peak`.
+pub fn irradiance_scale(peak: f64) -> f64 {
     if !(peak.is_finite() && peak > 0.0) {
         return 1.0;
     }
-    let peak = peak as f64;
     let step = 10f64.powi(peak.log10().floor() as i32 - 3);
-    let range = (peak / step).ceil() * step;
+    let scale = (peak / step).ceil() * step;
     // Rounding the decimal may land a hair under `peak`: step up once more.
-    if range < peak { range + step } else { range }
+    if scale < peak { scale + step } else { scale }
 }
 
-/// One texel as RGBM codes under `range` (module documentation).
-pub fn rgbm_encode(value: [f32; 3], range: f64) -> [u8; 4] {
-    let v = value.map(|c| if c.is_finite() { (c as f64).clamp(0.0, range) } else { 0.0 });
-    let peak = v[0].max(v[1]).max(v[2]);
-    let a = (peak / range * 255.0).ceil().clamp(0.0, 255.0);
-    if a == 0.0 {
-        return [0; 4];
-    }
-    let scale = range * a / 255.0;
-    let code = |c: f64| (c / scale * 255.0).round().clamp(0.0, 255.0) as u8;
-    [code(v[0]), code(v[1]), code(v[2]), a as u8]
-}
-
-/// L_lm from RGBM codes under `range`: `range · (A/255) · (RGB/255)`.
-pub fn rgbm_decode(code: [u8; 4], range: f64) -> [f32; 3] {
-    let scale = range * code[3] as f64 / 255.0;
-    [0, 1, 2].map(|c| (scale * code[c] as f64 / 255.0) as f32)
+/// One texel of L_lm as the codes of E/s, E = π·L_lm (module documentation).
+pub fn irradiance_encode(value: [f32; 3], scale: f64) -> [u8; 3] {
+    value.map(|c| {
+        let e = if c.is_finite() { std::f64::consts::PI * c as f64 } else { 0.0 };
+        (e / scale * 255.0).round().clamp(0.0, 255.0) as u8
+    })
 }
 
 impl Image {
@@ -199,13 +196,19 @@ impl Image {
         self.pixels.iter().flatten().copied().filter(|c| c.is_finite()).fold(0.0, f32::max)
     }
 
-    /// An 8-bit RGBA PNG of the RGBM codes under `range` (see the module documentation).
-    pub fn encode_rgbm_png(&self, range: f64) -> Result<Vec<u8>> {
-        let rgba: Vec<u8> = self.pixels.iter().flat_map(|&p| rgbm_encode(p, range)).collect();
+    /// The scale s of this lightmap's irradiance PNG: its peak E = π·L_lm, rounded up.
+    pub fn irradiance_scale(&self) -> f64 {
+        irradiance_scale(std::f64::consts::PI * self.peak() as f64)
+    }
+
+    /// An 8-bit RGB PNG of E/s, E = π·L_lm, with no colour space chunk: raw
+    /// linear codes (see the module documentation).
+    pub fn encode_irradiance_png(&self, scale: f64) -> Result<Vec<u8>> {
+        let rgb: Vec<u8> = self.pixels.iter().flat_map(|&p| irradiance_encode(p, scale)).collect();
         let mut bytes = Vec::new();
         let encoder = image::codecs::png::PngEncoder::new(&mut bytes);
-        image::ImageEncoder::write_image(encoder, &rgba, self.width, self.height, image::ExtendedColorType::Rgba8)
-            .context("encoding the RGBM lightmap")?;
+        image::ImageEncoder::write_image(encoder, &rgb, self.width, self.height, image::ExtendedColorType::Rgb8)
+            .context("encoding the irradiance lightmap")?;
         Ok(bytes)
     }
 }
@@ -285,39 +288,39 @@ mod tests {
     }
 
     #[test]
-    fn rgbm_range_rounds_up_to_four_digits() {
-        assert_eq!(rgbm_range(0.0), 1.0);
-        assert_eq!(rgbm_range(f32::NAN), 1.0);
-        assert_eq!(rgbm_range(1.0), 1.0);
-        assert!((rgbm_range(1.23456) - 1.235).abs() < 1e-12);
-        assert!((rgbm_range(12345.6) - 12350.0).abs() < 1e-9);
-        for peak in [1e-3f32, 0.7, 2.5, 99.99, 1e5] {
-            assert!(rgbm_range(peak) >= peak as f64 && rgbm_range(peak) <= peak as f64 * 1.001, "{peak}");
+    fn irradiance_scale_rounds_up_to_four_digits() {
+        assert_eq!(irradiance_scale(0.0), 1.0);
+        assert_eq!(irradiance_scale(f64::NAN), 1.0);
+        assert_eq!(irradiance_scale(1.0), 1.0);
+        assert!((irradiance_scale(1.23456) - 1.235).abs() < 1e-12);
+        assert!((irradiance_scale(12345.6) - 12350.0).abs() < 1e-9);
+        for peak in [1e-3, 0.7, 2.5, 99.99, 1e5, std::f64::consts::PI * 2.417] {
+            let scale = irradiance_scale(peak);
+            assert!(scale >= peak && scale <= peak * 1.001, "{peak}");
         }
     }
 
     #[test]
-    fn rgbm_round_trips_within_half_a_step() {
-        let range = 8.0;
-        let mut worst_relative: f64 = 0.0;
-        for i in 0..2000 {
+    fn irradiance_codes_are_within_half_a_step_of_pi_times_the_lightmap() {
+        let mut image = Image::blank(2000, 1);
+        for (i, p) in image.pixels.iter_mut().enumerate() {
             let t = i as f32 / 1999.0;
-            let value = [8.0 * t * t, 3.0 * t, 0.01 + 0.5 * t * t * t].map(|c: f32| c.min(8.0));
-            let code = rgbm_encode(value, range);
-            let back = rgbm_decode(code, range);
-            let half_step = range * code[3] as f64 / (2.0 * 255.0 * 255.0);
-            let peak = value.iter().copied().fold(0.0f32, f32::max) as f64;
+            *p = [2.5 * t * t, 0.8 * t, 0.01 + 0.5 * t * t * t];
+        }
+        let scale = image.irradiance_scale();
+        let peak = std::f64::consts::PI * 2.5;
+        assert!((peak..=peak * 1.001).contains(&scale), "{scale}");
+        for p in &image.pixels {
+            let code = irradiance_encode(*p, scale);
             for c in 0..3 {
-                let error = (back[c] as f64 - value[c] as f64).abs();
-                assert!(error <= half_step * (1.0 + 1e-6), "{value:?} → {code:?} → {back:?}");
-                if peak > range / 255.0 {
-                    worst_relative = worst_relative.max(error / peak);
-                }
+                let decoded = scale * code[c] as f64 / 255.0;
+                let e = std::f64::consts::PI * p[c] as f64;
+                assert!((decoded - e).abs() <= scale / 510.0 * (1.0 + 1e-9), "{p:?} → {code:?}");
             }
         }
-        assert!(worst_relative <= 1.0 / 255.0, "{worst_relative}");
-        assert_eq!(rgbm_encode([0.0; 3], range), [0; 4]);
-        assert_eq!(rgbm_encode([100.0, 0.0, f32::NAN], range), [255, 0, 0, 255]);
+        assert_eq!(irradiance_encode([0.0, f32::NAN, 100.0], scale), [0, 0, 255]);
+        let png = image.encode_irradiance_png(scale).unwrap();
+        assert_eq!(image::load_from_memory(&png).unwrap().color(), image::ColorType::Rgb8);
     }
 
     #[test]

@@ -1,16 +1,20 @@
 //! Materials of the baked primitives, in both forms (README, "Using the
 //! lightmap in an engine"):
 //!
-//! - `baked`, the material every primitive carries by default: unlit
-//!   (KHR_materials_unlit) with the baked atlas (albedo·L_lm + emission,
+//! - `baked`, the material every primitive draws by default (`--material
+//!   preview`): unlit (KHR_materials_unlit) with the baked atlas (albedo·L_lm + emission,
 //!   8-bit sRGB) as base colour on texCoord 1. three.js, Babylon.js,
 //!   model-viewer and Blender show it exactly as baked, with no plugin.
 //!   A cut-out whose alpha comes from its base colour texture shows the
 //!   atlas as emission instead, keeping that texture for its alpha
 //!   (`push_baked`). A primitive whose own material is unlit keeps it.
 //! - `pbr+lightmap`: the input's own material, intact, with the lightmap
-//!   referenced through `MOZ_lightmap` {index, texCoord: 1, intensity}, an
-//!   RGBM-encoded PNG of L_lm (decode range in the texture's extras).
+//!   referenced through `MOZ_lightmap` {index, texCoord: 1, intensity}: an
+//!   8-bit linear PNG of the irradiance E = π·L_lm over its scale s, with
+//!   `intensity` = s, as its readers take it (`lightmap.rs`). With
+//!   `--material engine` primitives draw this one by default. An unlit input
+//!   material shows its own colour whatever the light, so it gains no lightmap
+//!   (three.js's addon would light it with one).
 //!
 //! KHR_materials_variants offers both: variant `baked` maps to the unlit
 //! material, `pbr+lightmap` to the lightmapped one. Every extension bake adds
@@ -29,6 +33,7 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use serde_json::{Map, Value, json};
 
+use super::MaterialDefault;
 use super::document::Document;
 use super::primitives::Rewritten;
 use crate::asset::{VARIANT_BAKED, VARIANT_LIGHTMAPPED};
@@ -38,13 +43,16 @@ use crate::asset::{VARIANT_BAKED, VARIANT_LIGHTMAPPED};
 pub struct Textures {
     /// The baked (beauty) atlas, 8-bit sRGB.
     pub baked: usize,
-    /// The RGBM-encoded lightmap L_lm.
+    /// The lightmap as `MOZ_lightmap` reads it: E/s, 8-bit linear.
     pub lightmap: usize,
+    /// Its scale s, `MOZ_lightmap`'s `intensity`.
+    pub intensity: f64,
 }
 
-/// Gives every rewritten primitive its two materials and the variant
-/// mappings between them, and lists the extensions used.
-pub fn assign(document: &mut Document, rewritten: &[Rewritten], textures: Textures) {
+/// Gives every rewritten primitive its two materials, the one `default`
+/// names as its `material`, and the variant mappings between them, and lists
+/// the extensions used.
+pub fn assign(document: &mut Document, rewritten: &[Rewritten], textures: Textures, default: MaterialDefault) {
     let variants = add_variants(document);
     let others = materials_of_other_primitives(document, rewritten);
     let mut unlit: BTreeMap<(Option<usize>, Option<u32>), usize> = BTreeMap::new();
@@ -56,19 +64,24 @@ pub fn assign(document: &mut Document, rewritten: &[Rewritten], textures: Textur
         // A material follows moved UVs only if it samples texCoord 1.
         let original = material.map(|m| document.json["materials"][m].clone());
         let remap = r.moved_uv1_to.filter(|_| original.as_ref().is_some_and(|m| uses_texcoord(m, 1)));
+        // An unlit material shows its own colour whatever the light: it stays (a
+        // photogrammetry scan's texture holds its lighting already), in both forms.
+        let own_light = original.as_ref().is_some_and(is_unlit);
+        let lightmap = (!own_light).then_some(textures);
         let pbr = *lightmapped
             .entry((material, remap))
-            .or_insert_with(|| lightmapped_material(document, material, remap, &others, textures.lightmap));
-        // An unlit material shows its own colour whatever the light: it stays (a
-        // photogrammetry scan's texture holds its lighting already).
-        let baked = match original.as_ref().is_some_and(is_unlit) {
+            .or_insert_with(|| lightmapped_material(document, material, remap, &others, lightmap));
+        let baked = match own_light {
             true => pbr,
             false => {
                 *unlit.entry((material, remap)).or_insert_with(|| push_baked(document, material, remap, textures.baked))
             }
         };
         let primitive = &mut document.json["meshes"][r.mesh]["primitives"][r.primitive];
-        primitive["material"] = json!(baked);
+        primitive["material"] = json!(match default {
+            MaterialDefault::Preview => baked,
+            MaterialDefault::Engine => pbr,
+        });
         let extension = &mut primitive["extensions"]["KHR_materials_variants"];
         if !extension.get("mappings").is_some_and(Value::is_array) {
             extension["mappings"] = json!([]);
@@ -77,8 +90,12 @@ pub fn assign(document: &mut Document, rewritten: &[Rewritten], textures: Textur
         mappings.push(json!({ "material": baked, "variants": [variants.0] }));
         mappings.push(json!({ "material": pbr, "variants": [variants.1] }));
     }
-    for name in ["KHR_materials_unlit", "KHR_materials_variants", "MOZ_lightmap"] {
+    for name in ["KHR_materials_unlit", "KHR_materials_variants"] {
         document.use_extension(name);
+    }
+    let materials = document.json.get("materials").and_then(Value::as_array).map(Vec::as_slice).unwrap_or_default();
+    if materials.iter().any(|m| m.pointer("/extensions/MOZ_lightmap").is_some()) {
+        document.use_extension("MOZ_lightmap");
     }
 }
 
@@ -206,21 +223,34 @@ fn push_baked(document: &mut Document, original: Option<usize>, remap: Option<u3
     document.push("materials", material)
 }
 
-/// The input's material with `MOZ_lightmap`: in place where that changes
-/// nothing for other primitives, else a copy (see the module documentation).
+/// The input's material with `MOZ_lightmap` (none where `lightmap` is
+/// `None`): in place where that changes nothing for other primitives, else a
+/// copy (see the module documentation).
 fn lightmapped_material(
     document: &mut Document,
     original: Option<usize>,
     remap: Option<u32>,
     others: &BTreeSet<usize>,
-    lightmap: usize,
+    lightmap: Option<Textures>,
 ) -> usize {
-    let extension = json!({ "index": lightmap, "texCoord": 1, "intensity": 1.0 });
+    let set = |material: &mut Value| match lightmap {
+        Some(t) => {
+            material["extensions"]["MOZ_lightmap"] =
+                json!({ "index": t.lightmap, "texCoord": 1, "intensity": t.intensity })
+        }
+        // A previous bake's lightmap on a material that takes none now.
+        None => {
+            if let Some(extensions) = material.get_mut("extensions").and_then(Value::as_object_mut) {
+                extensions.remove("MOZ_lightmap");
+            }
+        }
+    };
     match original {
         Some(m) if remap.is_none() && !others.contains(&m) => {
-            document.json["materials"][m]["extensions"]["MOZ_lightmap"] = extension;
+            set(&mut document.json["materials"][m]);
             m
         }
+        Some(m) if remap.is_none() && lightmap.is_none() => m,
         Some(m) => {
             let mut copy = document.json["materials"][m].clone();
             if let Some(to) = remap {
@@ -228,14 +258,15 @@ fn lightmapped_material(
             }
             let name = base_name(&copy, format!("material {m}"));
             copy["name"] = json!(format!("{name} ({VARIANT_LIGHTMAPPED})"));
-            copy["extensions"]["MOZ_lightmap"] = extension;
+            set(&mut copy);
             document.push("materials", copy)
         }
         // glTF's default material is the empty one.
-        None => document.push(
-            "materials",
-            json!({ "name": format!("default ({VARIANT_LIGHTMAPPED})"), "extensions": { "MOZ_lightmap": extension } }),
-        ),
+        None => {
+            let mut material = json!({ "name": format!("default ({VARIANT_LIGHTMAPPED})") });
+            set(&mut material);
+            document.push("materials", material)
+        }
     }
 }
 
@@ -358,10 +389,13 @@ mod tests {
             Rewritten { mesh: 0, primitive: 0, material: Some(0), moved_uv1_to: None },
             Rewritten { mesh: 0, primitive: 1, material: Some(1), moved_uv1_to: None },
         ];
-        assign(&mut document, &rewritten, Textures { baked: 7, lightmap: 8 });
+        assign(&mut document, &rewritten, Textures { baked: 7, lightmap: 8, intensity: 2.5 }, MaterialDefault::Preview);
         let json = &document.json;
         // Material 0: only baked users, lightmapped in place. Material 1 is also drawn by mesh 1: copied.
-        assert_eq!(json["materials"][0]["extensions"]["MOZ_lightmap"]["index"], 8);
+        assert_eq!(
+            json["materials"][0]["extensions"]["MOZ_lightmap"],
+            json!({ "index": 8, "texCoord": 1, "intensity": 2.5 })
+        );
         assert!(json["materials"][1].get("extensions").is_none());
         let mappings = &json["meshes"][0]["primitives"][1]["extensions"]["KHR_materials_variants"]["mappings"];
         let pbr = mappings[1]["material"].as_u64().unwrap() as usize;

@@ -4,9 +4,10 @@
 //! - `NAME.glb`, or with [`Format::Gltf`] `NAME.gltf` + `NAME.bin` + image
 //!   files: the input with every field carried through, each baked primitive
 //!   given TEXCOORD_1 and two material forms under KHR_materials_variants
-//!   (`materials.rs`): by default the unlit baked atlas any viewer shows,
-//!   and the input's PBR material with the lightmap as `MOZ_lightmap`
-//!   (RGBM PNG, `lightmap.rs`).
+//!   (`materials.rs`): the unlit baked atlas any viewer shows, and the
+//!   input's PBR material with the lightmap as `MOZ_lightmap` (an 8-bit
+//!   linear PNG of the irradiance over its scale, `lightmap.rs`); which one
+//!   a primitive draws by default is [`MaterialDefault`].
 //! - `NAME.lightmap0.exr`: L_lm per texel in full float HDR.
 //!
 //! The same inputs and options give byte-identical files: nothing here
@@ -36,17 +37,53 @@ pub use document::Format;
 /// Export options with their defaults.
 #[derive(Clone, Debug)]
 pub struct ExportOptions {
-    /// Exposure in stops applied to the 8-bit preview texture (not to the EXR or the RGBM lightmap).
+    /// Exposure in stops applied to the 8-bit preview texture (not to the EXR or the `MOZ_lightmap` texture).
     pub exposure: f32,
     /// Texels of chart padding filled by dilation.
     pub dilation: u32,
     /// `.glb` (default) or `.gltf` + `.bin` + images.
     pub format: Format,
+    /// Which material form a baked primitive draws by default (`--material`).
+    pub material: MaterialDefault,
 }
 
 impl Default for ExportOptions {
     fn default() -> Self {
-        ExportOptions { exposure: 0.0, dilation: 4, format: Format::Glb }
+        ExportOptions { exposure: 0.0, dilation: 4, format: Format::Glb, material: MaterialDefault::Preview }
+    }
+}
+
+/// The material form a baked primitive draws by default; the other is its
+/// KHR_materials_variants variant, which viewers do not select.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MaterialDefault {
+    /// Unlit with the baked atlas: what every viewer shows exactly as baked.
+    #[default]
+    Preview,
+    /// The input's PBR material with `MOZ_lightmap`: what an engine lights,
+    /// and what a pipeline that feeds one wants in its files.
+    Engine,
+}
+
+impl std::fmt::Display for MaterialDefault {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            MaterialDefault::Preview => "preview",
+            MaterialDefault::Engine => "engine",
+        })
+    }
+}
+
+impl std::str::FromStr for MaterialDefault {
+    type Err = anyhow::Error;
+
+    /// `"preview"` or `"engine"`, case-insensitive.
+    fn from_str(s: &str) -> Result<Self> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "preview" => Ok(MaterialDefault::Preview),
+            "engine" => Ok(MaterialDefault::Engine),
+            _ => anyhow::bail!("unknown material form {s:?} (expected \"preview\" or \"engine\")"),
+        }
     }
 }
 
@@ -60,8 +97,8 @@ pub struct ExportStats {
     pub dilated_texels: usize,
     /// UV seams stitched in the lightmap and the baked texture.
     pub stitch: seams::StitchStats,
-    /// The RGBM lightmap's range R: L_lm = R · (A/255) · (RGB/255).
-    pub rgbm_range: f64,
+    /// The `MOZ_lightmap` texture's scale s, its `intensity`: E = π·L_lm = s · RGB/255.
+    pub lightmap_intensity: f64,
     pub notices: Vec<String>,
 }
 
@@ -90,8 +127,8 @@ pub fn run(baked: &Input, options: &ExportOptions, dir: &Path) -> Result<ExportS
     let exr_name = format!("{}.lightmap0.exr", scene.name);
     let exr = lightmap.encode_exr()?;
     let beauty_png = beauty.encode_png(options.exposure.exp2())?;
-    let range = lightmap::rgbm_range(lightmap.peak());
-    let rgbm_png = lightmap.encode_rgbm_png(range)?;
+    let scale = lightmap.irradiance_scale();
+    let irradiance_png = lightmap.encode_irradiance_png(scale)?;
 
     let mut document = Document::from_source(&scene.source)?;
     let baked_texture = document.push_png_texture(
@@ -105,14 +142,15 @@ pub fn run(baked: &Input, options: &ExportOptions, dir: &Path) -> Result<ExportS
         }})),
     );
     let lightmap_texture = document.push_png_texture(
-        &format!("{} lightmap (RGBM)", scene.name),
-        rgbm_png,
-        "lightmap0.rgbm",
+        &format!("{} lightmap", scene.name),
+        irradiance_png,
+        "lightmap0",
         Some(json!({ "bake": {
-            "content": "L_lm = E/pi, linear RGB",
-            "encoding": "RGBM",
-            "range": range,
-            "decode": "L_lm = range * (A/255) * (RGB/255), from the raw 8-bit codes (no sRGB decoding)",
+            "content": "irradiance E = pi * L_lm over its scale, linear RGB",
+            "encoding": "linear",
+            "scale": scale,
+            "decode": "E = scale * RGB/255 from the raw 8-bit codes (no sRGB decoding); scale is MOZ_lightmap's \
+                       intensity; L_lm = E/pi",
             "hdr": exr_name,
         }})),
     );
@@ -120,7 +158,8 @@ pub fn run(baked: &Input, options: &ExportOptions, dir: &Path) -> Result<ExportS
     materials::assign(
         &mut document,
         &rewritten,
-        materials::Textures { baked: baked_texture, lightmap: lightmap_texture },
+        materials::Textures { baked: baked_texture, lightmap: lightmap_texture, intensity: scale },
+        options.material,
     );
 
     let mut files = Vec::new();
@@ -135,7 +174,7 @@ pub fn run(baked: &Input, options: &ExportOptions, dir: &Path) -> Result<ExportS
         atlas_height: atlas.height,
         dilated_texels: fixups.dilated,
         stitch: fixups.stitch,
-        rgbm_range: range,
+        lightmap_intensity: scale,
         notices,
     })
 }

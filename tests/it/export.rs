@@ -2,7 +2,8 @@
 //! in the input survives (nodes, meshes, materials, animations, cameras,
 //! skins, extras, unknown extensions, names, order); the default material is
 //! the unlit baked one and the input's PBR material is one variant away with
-//! an RGBM lightmap that decodes to the EXR; the `.gltf` form holds the same
+//! a `MOZ_lightmap` of linear irradiance over its `intensity` that decodes to
+//! the EXR (`--material engine` swaps the two); the `.gltf` form holds the same
 //! scene; `--keep-uv1` bakes into a valid TEXCOORD_1 and otherwise says why
 //! not; no output ever replaces a file of an input.
 
@@ -241,8 +242,21 @@ fn png_chunks(png: &[u8]) -> Vec<String> {
     chunks
 }
 
+/// A lightmap EXR's texels, row by row from the top, with its width.
+fn read_exr(path: &Path) -> (usize, Vec<[f32; 3]>) {
+    let exr = exr::prelude::read_first_rgba_layer_from_file(
+        path,
+        |size, _| (size.width(), vec![[0f32; 3]; size.width() * size.height()]),
+        |(w, pixels), position, (r, g, b, _a): (f32, f32, f32, f32)| {
+            pixels[position.y() * *w + position.x()] = [r, g, b]
+        },
+    )
+    .unwrap();
+    exr.layer_data.channel_data.pixels
+}
+
 #[test]
-fn the_rgbm_lightmap_decodes_to_the_exr() {
+fn the_moz_lightmap_is_linear_irradiance_over_its_intensity() {
     let dir = tempfile::tempdir().unwrap();
     // Under the sun, L_lm reaches far above 1.
     bake_ok(&fixture("sphere_on_ground.glb"), dir.path(), &[]);
@@ -253,12 +267,11 @@ fn the_rgbm_lightmap_decodes_to_the_exr() {
     assert_eq!(lightmaps.len(), 2, "both input materials carry the lightmap");
     assert!(lightmaps.iter().all(|l| *l == lightmaps[0]));
     assert_eq!(lightmaps[0]["texCoord"], 1);
-    assert_eq!(lightmaps[0]["intensity"], 1.0);
+    let intensity = lightmaps[0]["intensity"].as_f64().unwrap();
     let texture = &json["textures"][lightmaps[0]["index"].as_u64().unwrap() as usize];
-    let decode = &texture["extras"]["bake"];
-    assert_eq!(decode["encoding"], "RGBM");
-    assert_eq!(decode["hdr"], "sphere_on_ground.lightmap0.exr");
-    let range = decode["range"].as_f64().unwrap();
+    let extras = &texture["extras"]["bake"];
+    assert_eq!((&extras["encoding"], &extras["scale"]), (&json!("linear"), &json!(intensity)));
+    assert_eq!(extras["hdr"], "sphere_on_ground.lightmap0.exr");
     let (png, mime) = asset.image_bytes(texture["source"].as_u64().unwrap() as usize).unwrap();
     assert_eq!(mime.as_deref(), Some("image/png"));
     let chunks = png_chunks(&png);
@@ -266,52 +279,71 @@ fn the_rgbm_lightmap_decodes_to_the_exr() {
         !chunks.iter().any(|c| c == "sRGB" || c == "gAMA" || c == "iCCP"),
         "raw codes, no colour space: {chunks:?}"
     );
-    let rgbm = image::load_from_memory(&png).unwrap();
-    assert_eq!(rgbm.color(), image::ColorType::Rgba8);
-    let rgbm = rgbm.to_rgba8();
+    let image = image::load_from_memory(&png).unwrap();
+    // RGB: an RGBM file (RGBA) or any alpha a reader would have to know about fails here.
+    assert_eq!(image.color(), image::ColorType::Rgb8);
+    let codes = image.to_rgb8();
 
-    let (width, height) = (rgbm.width() as usize, rgbm.height() as usize);
-    let exr = exr::prelude::read_first_rgba_layer_from_file(
-        dir.path().join("sphere_on_ground.lightmap0.exr"),
-        |size, _| (size.width(), vec![[0f32; 3]; size.width() * size.height()]),
-        |(w, pixels), position, (r, g, b, _a): (f32, f32, f32, f32)| {
-            pixels[position.y() * *w + position.x()] = [r, g, b]
-        },
-    )
-    .unwrap();
-    let hdr = &exr.layer_data.channel_data.pixels.1;
-    assert_eq!(hdr.len(), width * height);
-
-    let peak = hdr.iter().flatten().copied().fold(0.0f32, f32::max) as f64;
-    assert!(peak > 1.0, "the sun makes L_lm exceed 1 ({peak})");
-    assert!(range >= peak && range <= peak * 1.001, "range {range} for a peak of {peak}");
-    let (mut worst_steps, mut worst_relative, mut lit) = (0.0f64, 0.0f64, 0);
-    for (i, (pixel, value)) in rgbm.pixels().zip(hdr).enumerate() {
-        // The README's formula, verbatim: L_lm = range · (A/255) · (RGB/255).
-        let a = pixel[3] as f64 / 255.0;
-        let decoded = [0, 1, 2].map(|c| range * a * (pixel[c] as f64 / 255.0));
-        let half_step = range * a / 255.0 / 2.0;
-        let brightest = value.iter().copied().fold(0.0f32, f32::max) as f64;
+    let (width, hdr) = read_exr(&dir.path().join("sphere_on_ground.lightmap0.exr"));
+    assert_eq!((codes.width() as usize, hdr.len()), (width, codes.len() / 3));
+    let peak = std::f64::consts::PI * hdr.iter().flatten().copied().fold(0.0f32, f32::max) as f64;
+    assert!(peak > std::f64::consts::PI, "the sun makes L_lm exceed 1 ({peak})");
+    assert!(intensity >= peak && intensity <= peak * 1.001, "intensity {intensity} for a peak E of {peak}");
+    let (mut worst_steps, mut lit) = (0.0f64, 0);
+    let step = intensity / 255.0;
+    for (i, (pixel, value)) in codes.pixels().zip(&hdr).enumerate() {
         for c in 0..3 {
-            let error = (decoded[c] - value[c] as f64).abs();
+            // As the readers shade it: E = intensity · code/255, irradiance; L_lm = E/π.
+            let e = intensity * pixel[c] as f64 / 255.0;
+            let error = (e - std::f64::consts::PI * value[c] as f64).abs();
             assert!(
-                error <= half_step * (1.0 + 1e-6) + 1e-9,
-                "texel {i}: {value:?} decodes to {decoded:?} ({pixel:?}), off by {error} > {half_step}"
+                error <= step / 2.0 * (1.0 + 1e-6),
+                "texel {i}: L_lm {value:?} is E {:?} but the PNG holds {pixel:?}, E {e}",
+                value.map(|v| std::f64::consts::PI * v as f64)
             );
-            if half_step > 0.0 {
-                worst_steps = worst_steps.max(error / (2.0 * half_step));
-            }
-            if brightest > range / 255.0 {
-                worst_relative = worst_relative.max(error / brightest);
-            }
+            worst_steps = worst_steps.max(error / step);
         }
-        lit += usize::from(brightest > 0.0);
+        lit += usize::from(value.iter().any(|&v| v > 0.0));
     }
     eprintln!(
-        "{width}×{height} RGBM lightmap, range {range} (peak L_lm {peak:.4}), {lit} non-black texels: \
-         worst error {worst_steps:.3} of a code step, {worst_relative:.5} of the texel's brightest channel"
+        "{width}² MOZ_lightmap, intensity {intensity} (peak E {peak:.4}), {lit} non-black texels: worst error {:.3} \
+         of a code step",
+        worst_steps
     );
-    assert!(worst_relative <= 1.0 / 255.0);
+}
+
+#[test]
+fn the_engine_material_draws_the_pbr_form_and_keeps_the_preview_a_variant_away() {
+    let dir = tempfile::tempdir().unwrap();
+    let (preview, engine) = (dir.path().join("preview"), dir.path().join("engine"));
+    bake_ok(&fixture("sphere_on_ground.glb"), &preview, &[]);
+    bake_ok(&fixture("sphere_on_ground.glb"), &engine, &["--material", "engine"]);
+    let load = |out: &Path| SourceAsset::load(&out.join("sphere_on_ground.glb")).unwrap().json;
+    let (preview_json, engine_json) = (load(&preview), load(&engine));
+    for mesh in 0..2 {
+        let pointer = format!("/meshes/{mesh}/primitives/0");
+        let (p, e) = (preview_json.pointer(&pointer).unwrap(), engine_json.pointer(&pointer).unwrap());
+        let mappings = &p["extensions"]["KHR_materials_variants"]["mappings"];
+        // Variant 0 is `baked`, 1 `pbr+lightmap`, in both files.
+        let (baked, pbr) = (&mappings[0]["material"], &mappings[1]["material"]);
+        assert_eq!(mappings[0]["variants"], json!([0]));
+        assert_eq!(mappings[1]["variants"], json!([1]));
+        assert_eq!((&p["material"], &e["material"]), (baked, pbr), "{p} / {e}");
+        assert_eq!(e["extensions"], p["extensions"], "the same mappings");
+        let material = &engine_json["materials"][pbr.as_u64().unwrap() as usize];
+        assert!(material.pointer("/extensions/MOZ_lightmap").is_some(), "{material}");
+        assert!(material.pointer("/extensions/KHR_materials_unlit").is_none(), "{material}");
+    }
+    let mut swapped = engine_json.clone();
+    for mesh in 0..2 {
+        let primitive = &mut swapped["meshes"][mesh]["primitives"][0];
+        primitive["material"] = primitive["extensions"]["KHR_materials_variants"]["mappings"][0]["material"].clone();
+    }
+    assert_eq!(swapped, preview_json, "nothing else differs");
+    assert_eq!(
+        std::fs::read(preview.join("sphere_on_ground.lightmap0.exr")).unwrap(),
+        std::fs::read(engine.join("sphere_on_ground.lightmap0.exr")).unwrap()
+    );
 }
 
 /// Every file in `dir` but report.json, by name.
@@ -340,7 +372,7 @@ fn the_gltf_form_holds_the_same_scene_in_separate_files() {
             "everything.gltf",
             "everything.image1.png",
             "everything.lightmap0.exr",
-            "everything.lightmap0.rgbm.png",
+            "everything.lightmap0.png",
         ]
     );
     let outputs: Vec<String> = report(&gltf_dir).scenes[0]

@@ -10,6 +10,7 @@ mod common;
 mod determinism;
 mod device_loss;
 mod draco;
+mod engines;
 #[allow(clippy::needless_range_loop)]
 mod environment;
 mod export;

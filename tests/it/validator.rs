@@ -103,6 +103,17 @@ fn the_gltf_form_passes_the_validator() {
 }
 
 #[test]
+fn the_engine_material_form_passes_the_validator() {
+    // The PBR + MOZ_lightmap material as the default, the unlit preview a variant away.
+    let dir = tempfile::tempdir().unwrap();
+    for stem in ["everything", "sphere_on_ground"] {
+        let out = dir.path().join(stem);
+        bake(&repo().join(format!("fixtures/{stem}.glb")), &out, &["--material", "engine"]);
+        assert_valid(&out.join(format!("{stem}.glb")));
+    }
+}
+
+#[test]
 fn a_primitive_without_texcoord_0_gets_a_valid_uv_numbering() {
     // glTF numbers texture coordinate sets from 0 without gaps: TEXCOORD_1 alone is an error.
     let dir = tempfile::tempdir().unwrap();
@@ -401,6 +412,12 @@ fn an_unlit_material_keeps_showing_its_own_colour() {
         json["materials"][1]["pbrMetallicRoughness"]["baseColorFactor"]
     );
     assert!(sign["pbrMetallicRoughness"].get("baseColorTexture").is_none(), "no atlas on it: {sign}");
+    // Nor a lightmap, which three.js would shade it with; the ground's keeps the extension in use.
+    assert!(sign["extensions"].get("MOZ_lightmap").is_none(), "{sign}");
+    let ground_variants = &asset.json["meshes"][0]["primitives"][0]["extensions"]["KHR_materials_variants"];
+    let ground_pbr = &asset.json["materials"][ground_variants["mappings"][1]["material"].as_u64().unwrap() as usize];
+    assert!(ground_pbr.pointer("/extensions/MOZ_lightmap").is_some(), "{ground_pbr}");
+    assert!(asset.json["extensionsUsed"].as_array().unwrap().contains(&"MOZ_lightmap".into()));
     let report: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
     let notices = report["scenes"][0]["notices"].to_string();
     assert!(notices.contains("material 1 'sign' is unlit (KHR_materials_unlit): its primitives keep it"), "{notices}");
