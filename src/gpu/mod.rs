@@ -5,6 +5,8 @@
 //! down, as wgpu's `hello_compute` example separates set-up from work.
 
 mod materials;
+#[cfg(test)]
+pub(crate) mod mirror;
 mod readback;
 mod shaders;
 

@@ -368,3 +368,18 @@ pub(super) fn power_received(texels: &TexelSet, irradiance: &[[f32; 3]]) -> [f64
         sum
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_params_mirror_the_shader() {
+        use crate::gpu::{Shader, mirror::assert_mirrors};
+        assert_mirrors!(
+            Shader::SolveDirect,
+            "DirectParams",
+            DirectParams { point_count, row_stride, light_count, first_light }
+        );
+    }
+}

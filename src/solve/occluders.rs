@@ -79,3 +79,15 @@ impl OccluderPass {
         occluders
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_rust_structs_mirror_the_shaders() {
+        use crate::gpu::{Shader, mirror::assert_mirrors};
+        assert_mirrors!(Shader::SolveOccluders, "OccluderParams", OccluderParams { point_count, row_stride });
+        assert_mirrors!(Shader::SolveDirect, "Occluders", Occluders { cones, sines, polygons, flags, visits });
+    }
+}

@@ -614,4 +614,14 @@ mod tests {
         assert!(close(p.rect_centre, Vec3::new(0.1, 0.0, 0.05)), "centre {:?}", p.rect_centre);
         assert!(close(p.half_v, Vec3::new(0.0, 0.0, 0.1)), "half_v {:?}", p.half_v);
     }
+
+    #[test]
+    fn the_patch_mirrors_common_wgsl() {
+        use crate::gpu::{Shader, mirror::assert_mirrors};
+        assert_mirrors!(
+            Shader::SolveShoot,
+            "Patch",
+            Patch { position, area, normal, first, rect_centre, count, half_u, lift, half_v, radius }
+        );
+    }
 }

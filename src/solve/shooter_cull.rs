@@ -147,4 +147,14 @@ mod tests {
         let texels = [texel([0.0; 3], [0.0, 1.0, 0.0]), texel([1.0, 0.0, 0.0], [0.0, -1.0, 0.0])];
         assert_eq!(group_bounds(&texels).cos_spread, -1.0);
     }
+
+    #[test]
+    fn the_receiver_group_mirrors_its_shader() {
+        use crate::gpu::{Shader, mirror::assert_mirrors};
+        assert_mirrors!(
+            Shader::SolveShooterCull,
+            "ReceiverGroup",
+            ReceiverGroup { lo, cos_spread, hi, sin_spread, axis }
+        );
+    }
 }

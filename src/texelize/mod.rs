@@ -256,3 +256,24 @@ fn barycentric(p: Vec3, [a, b, c]: [Vec3; 3]) -> [f32; 3] {
     let sum = u + v + w;
     [u / sum, v / sum, w / sum]
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_rust_structs_mirror_the_shaders() {
+        use crate::gpu::{Shader, mirror::assert_mirrors};
+        assert_mirrors!(
+            Shader::TexelizeAttributes,
+            "Texel",
+            Texel { position, area, normal, index, face_normal, triangle, albedo, chart, emission, primitive }
+        );
+        assert_mirrors!(Shader::TexelizeAttributes, "Vertex", GpuVertex { position, normal, uv0, uv1 });
+        assert_mirrors!(
+            Shader::TexelizeAttributes,
+            "Triangle",
+            GpuTriangle { corners, material, face_normal, border_edges }
+        );
+    }
+}

@@ -486,4 +486,14 @@ mod tests {
             assert!((lo[k] as f64) <= v[k] && (hi[k] as f64) >= v[k]);
         }
     }
+
+    #[test]
+    fn the_scene_layout_mirrors_trace_wgsl() {
+        use crate::gpu::{Shader, mirror::assert_mirrors};
+        assert_mirrors!(
+            Shader::SolveDirect,
+            "SceneLayout",
+            SceneLayout { node_count, triangle_base, extra_base, uv_base, scale }
+        );
+    }
 }
