@@ -13,7 +13,8 @@
 #   tests/it/validator.rs runs the validator through pipeline/validate.mjs,
 #   tests/it/gltfpack.rs runs gltfpack, tests/it/draco.rs runs pipeline/draco.mjs,
 #   tests/it/ktx2.rs runs pipeline/ktx2.mjs; three.js, Babylon.js and
-#   puppeteer-core, with which tests/it/engines.rs runs pipeline/engines.mjs.
+#   puppeteer-core, with which tests/it/engines.rs runs pipeline/engines.mjs;
+#   Ajv, with which tests/it/report.rs runs pipeline/schema.mjs.
 set -eu
 cd "$(dirname "$0")"
 if [ "$(id -u)" -eq 0 ]; then sudo=""; else sudo="sudo"; fi

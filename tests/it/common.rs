@@ -108,9 +108,10 @@ pub fn repo(path: &str) -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
 }
 
-/// Runs a Node script of pipeline/ with `args`; fails the test with its
-/// output when it fails (its npm packages come from ./pipeline/setup.sh).
-pub fn node(script: &str, args: &[&std::ffi::OsStr]) {
+/// Runs a Node script of pipeline/ with `args` and returns its stdout; fails
+/// the test with its output when it fails (its npm packages come from
+/// ./pipeline/setup.sh).
+pub fn node(script: &str, args: &[&std::ffi::OsStr]) -> String {
     let run = std::process::Command::new("node")
         .arg(repo(script))
         .args(args)
@@ -122,6 +123,7 @@ pub fn node(script: &str, args: &[&std::ffi::OsStr]) {
         String::from_utf8_lossy(&run.stdout),
         String::from_utf8_lossy(&run.stderr)
     );
+    String::from_utf8(run.stdout).expect("the script writes UTF-8")
 }
 
 /// Bakes `input` through the CLI under the sun-and-sky fixture with `args`
