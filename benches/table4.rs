@@ -621,18 +621,15 @@ fn bounce_scaling(gpu: &Gpu) -> Result<()> {
         bounce.tolerance = 0.0;
         let mut lightmap = vec![[1.0f32; 3]; texels.texels.len()];
         let (wall, cpu) = (Instant::now(), cpu_seconds());
-        let stats = bake::solve::bounce::run(
-            gpu,
-            &scene,
-            &texels,
-            None,
-            &patches,
-            &mut lightmap,
-            None,
-            tpu,
-            &bounce,
-            &mut |_, _| {},
-        )?;
+        let surfaces = bake::solve::bounce::Surfaces {
+            scene: &scene,
+            texels: &texels,
+            shares: None,
+            patches: &patches,
+            coverage: None,
+            texels_per_unit: tpu,
+        };
+        let stats = bake::solve::bounce::run(gpu, &surfaces, &mut lightmap, &bounce, &mut |_, _| {})?;
         let cores = (cpu_seconds() - cpu) / wall.elapsed().as_secs_f64();
         println!(
             "| atlas {size}², statue frequency {frequency} | {} | {} | {} | {:.2} | {:.1} | {:.1} | {cores:.2} |",

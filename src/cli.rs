@@ -233,6 +233,36 @@ pub enum LogFormat {
 impl Args {
     /// Checks ranges and builds the run's configuration.
     pub fn into_config(self) -> Result<Config> {
+        self.check_ranges()?;
+        let log = match (self.quiet, self.log_format) {
+            (true, _) => LogMode::Quiet,
+            (false, LogFormat::Auto) => LogMode::Auto,
+            (false, LogFormat::Text) => LogMode::Text,
+            (false, LogFormat::Json) => LogMode::Json,
+        };
+        let bake = self.bake_options();
+        Ok(Config {
+            inputs: self.inputs,
+            environment: self.env,
+            environment_options: EnvironmentOptions {
+                lights: self.lights,
+                rotation_degrees: self.env_rotation,
+                intensity: self.env_intensity,
+                clamp_nonfinite: self.clamp_nonfinite,
+            },
+            import: ImportOptions { max_triangles: self.max_triangles },
+            output: self.output,
+            adapter: self.adapter,
+            gpu_timeout: (self.gpu_timeout > 0.0).then(|| std::time::Duration::from_secs_f64(self.gpu_timeout)),
+            bake,
+            log,
+            report: ReportOptions { arguments: Vec::new(), plot: self.plot },
+        })
+    }
+
+    /// Refuses the values clap's parsers let through: floats that are not
+    /// finite or out of their range.
+    fn check_ranges(&self) -> Result<()> {
         if let Some(t) = self.texels_per_unit
             && !(t.is_finite() && t > 0.0)
         {
@@ -263,63 +293,46 @@ impl Args {
         if !self.exposure.is_finite() {
             bail!("--exposure must be finite");
         }
-        let log = match (self.quiet, self.log_format) {
-            (true, _) => LogMode::Quiet,
-            (false, LogFormat::Auto) => LogMode::Auto,
-            (false, LogFormat::Text) => LogMode::Text,
-            (false, LogFormat::Json) => LogMode::Json,
-        };
-        Ok(Config {
-            inputs: self.inputs,
-            environment: self.env,
-            environment_options: EnvironmentOptions {
-                lights: self.lights,
-                rotation_degrees: self.env_rotation,
-                intensity: self.env_intensity,
-                clamp_nonfinite: self.clamp_nonfinite,
+        Ok(())
+    }
+
+    /// What each input's bake takes: unwrap, solve, export and `--reference`.
+    fn bake_options(&self) -> BakeOptions {
+        BakeOptions {
+            unwrap: UnwrapOptions {
+                backend: self.unwrapper,
+                texels_per_unit: self.texels_per_unit,
+                max_atlas_size: self.max_atlas_size,
+                padding: self.padding,
             },
-            import: ImportOptions { max_triangles: self.max_triangles },
-            output: self.output,
-            adapter: self.adapter,
-            gpu_timeout: (self.gpu_timeout > 0.0).then(|| std::time::Duration::from_secs_f64(self.gpu_timeout)),
-            bake: BakeOptions {
-                unwrap: UnwrapOptions {
-                    backend: self.unwrapper,
-                    texels_per_unit: self.texels_per_unit,
-                    max_atlas_size: self.max_atlas_size,
-                    padding: self.padding,
+            keep_uv1: self.keep_uv1,
+            solve: SolveOptions {
+                supersample: !self.no_supersample,
+                contact: !self.no_contact_trace,
+                punctual: !self.no_punctual_lights,
+                bounce: BounceOptions {
+                    tolerance: self.tolerance,
+                    max_shots: self.max_shots,
+                    max_seconds: self.max_time,
+                    patches: self.patches,
+                    ..BounceOptions::default()
                 },
-                keep_uv1: self.keep_uv1,
-                solve: SolveOptions {
-                    supersample: !self.no_supersample,
-                    contact: !self.no_contact_trace,
-                    punctual: !self.no_punctual_lights,
-                    bounce: BounceOptions {
-                        tolerance: self.tolerance,
-                        max_shots: self.max_shots,
-                        max_seconds: self.max_time,
-                        patches: self.patches,
-                        ..BounceOptions::default()
-                    },
-                    ..SolveOptions::default()
-                },
-                export: ExportOptions {
-                    exposure: self.exposure,
-                    format: self.format,
-                    material: self.material,
-                    ..ExportOptions::default()
-                },
-                reference: self.reference.map(|texels| ReferenceCheck {
-                    texels,
-                    samples: self.reference_samples,
-                    environment: None,
-                    env_rotation_degrees: self.env_rotation,
-                    env_intensity: self.env_intensity,
-                }),
+                ..SolveOptions::default()
             },
-            log,
-            report: ReportOptions { arguments: Vec::new(), plot: self.plot },
-        })
+            export: ExportOptions {
+                exposure: self.exposure,
+                format: self.format,
+                material: self.material,
+                ..ExportOptions::default()
+            },
+            reference: self.reference.map(|texels| ReferenceCheck {
+                texels,
+                samples: self.reference_samples,
+                environment: None,
+                env_rotation_degrees: self.env_rotation,
+                env_intensity: self.env_intensity,
+            }),
+        }
     }
 }
 

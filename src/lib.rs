@@ -115,58 +115,12 @@ pub fn bake_scene(
         progress.notice(&notice);
         notices.push(notice);
     }
-    let (atlas, uv1_reused) = stage(gpu, progress, &mut stages, &name, "unwrap", |_| {
-        // Repeated triangles share their first copy's UVs: unwrap without them, then put them back.
-        let unique: Vec<Vec<u32>> = scene.primitives.iter().map(|p| repeats::without(&p.indices, &p.repeats)).collect();
-        let meshes: Vec<unwrap::MeshInput> = scene
-            .primitives
-            .iter()
-            .zip(&unique)
-            .map(|(p, indices)| unwrap::MeshInput { positions: &p.positions, indices })
-            .collect();
-        let kept = options.keep_uv1.then(|| existing_uv1(&scene, &meshes, &options.unwrap));
-        let (mut atlas, reused) = match kept {
-            Some(Ok(atlas)) => (atlas, true),
-            Some(Err(why)) => {
-                let mut atlas = unwrap::run(&meshes, &options.unwrap).context("unwrap")?;
-                atlas.notices.insert(0, format!("--keep-uv1: TEXCOORD_1 not reused: {why}; unwrapped instead"));
-                (atlas, false)
-            }
-            None => (unwrap::run(&meshes, &options.unwrap).context("unwrap")?, false),
-        };
-        let unwrapped = std::mem::take(&mut atlas.meshes);
-        atlas.meshes = (scene.primitives.iter().zip(unwrapped))
-            .map(|(p, mesh)| repeats::restore(&p.indices, &p.repeats, mesh))
-            .collect();
-        let summary = format!(
-            "{}×{} atlas, {} charts, {:.0}% used, {:.3} texels/m",
-            atlas.width,
-            atlas.height,
-            atlas.chart_count,
-            atlas.utilization * 100.0,
-            atlas.texels_per_unit
-        );
-        Ok(((atlas, reused), summary))
-    })?;
+    let (atlas, uv1_reused) = stage(gpu, progress, &mut stages, &name, "unwrap", |_| unwrap_scene(&scene, options))?;
     for notice in &atlas.notices {
         progress.notice(notice);
     }
     notices.extend(atlas.notices.iter().cloned());
-    let texels = stage(gpu, progress, &mut stages, &name, "texelize", |_| {
-        let texels = match atlas.width * atlas.height {
-            0 => None,
-            _ => Some(texelize::run(gpu, &scene, &atlas)?).filter(|t| !t.texels.is_empty()),
-        };
-        // Too low a density leaves nothing to bake: the user's to change, not a GPU failure.
-        let Some(texels) = texels else {
-            bail!(
-                "at {} texels per metre the scene covers no lightmap texel: raise --texels-per-unit",
-                atlas.texels_per_unit
-            );
-        };
-        let summary = format!("{} texels covering {:.4} m²", texels.texels.len(), texels.total_area());
-        Ok((texels, summary))
-    })?;
+    let texels = stage(gpu, progress, &mut stages, &name, "texelize", |_| texelize_atlas(gpu, &scene, &atlas))?;
     let mut solve_options = options.solve.clone();
     let mut reference = None;
     if let Some(check) = &options.reference {
@@ -188,29 +142,7 @@ pub fn bake_scene(
         let solution = solve::run(gpu, &scene, &texels, lights, atlas.texels_per_unit, &solve_options, &mut |d, t| {
             progress.update(d, t)
         })?;
-        let mut parts = Vec::new();
-        if let Some(d) = &solution.direct {
-            parts.push(format!("{} lights × {} texels, {} rays", d.lights, texels.texels.len(), d.rays));
-        }
-        if let Some(p) = &solution.punctual {
-            parts.push(format!("{} punctual lights along {} shadow rays in {:.1} s", p.lights, p.rays, p.seconds));
-        }
-        if let Some(b) = &solution.bounce {
-            parts.push(format!(
-                "{} shots from {} patches ({}), {:.2}% unshot",
-                b.shots,
-                b.patches,
-                b.stopped_by,
-                b.unshot_fraction * 100.0
-            ));
-        }
-        if let Some(c) = solution.contact.as_ref().filter(|c| c.gathered > 0) {
-            parts.push(format!(
-                "{} texels in contact gathered along rays ({} with traced direct light) in {:.1} s",
-                c.gathered, c.traced, c.seconds
-            ));
-        }
-        let summary = if parts.is_empty() { "nothing to solve".to_string() } else { parts.join("; ") };
+        let summary = solve_summary(&solution, &texels);
         Ok((solution, summary))
     })?;
     let reference = reference.map(|(probes, noise, seconds)| report::ReferenceReport {
@@ -221,6 +153,86 @@ pub fn bake_scene(
         error: probes.lightmap_error(&solution.lightmap),
     });
     Ok(Baked { scene, atlas, texels, solution, stages, notices, reference, uv1_reused })
+}
+
+/// The unwrap stage: the scene's own TEXCOORD_1 (`--keep-uv1`) or a new
+/// unwrap, whether it was the former, and the stage's summary.
+fn unwrap_scene(scene: &Scene, options: &BakeOptions) -> Result<((Atlas, bool), String)> {
+    // Repeated triangles share their first copy's UVs: unwrap without them, then put them back.
+    let unique: Vec<Vec<u32>> = scene.primitives.iter().map(|p| repeats::without(&p.indices, &p.repeats)).collect();
+    let meshes: Vec<unwrap::MeshInput> = scene
+        .primitives
+        .iter()
+        .zip(&unique)
+        .map(|(p, indices)| unwrap::MeshInput { positions: &p.positions, indices })
+        .collect();
+    let kept = options.keep_uv1.then(|| existing_uv1(scene, &meshes, &options.unwrap));
+    let (mut atlas, reused) = match kept {
+        Some(Ok(atlas)) => (atlas, true),
+        Some(Err(why)) => {
+            let mut atlas = unwrap::run(&meshes, &options.unwrap).context("unwrap")?;
+            atlas.notices.insert(0, format!("--keep-uv1: TEXCOORD_1 not reused: {why}; unwrapped instead"));
+            (atlas, false)
+        }
+        None => (unwrap::run(&meshes, &options.unwrap).context("unwrap")?, false),
+    };
+    let unwrapped = std::mem::take(&mut atlas.meshes);
+    atlas.meshes = (scene.primitives.iter().zip(unwrapped))
+        .map(|(p, mesh)| repeats::restore(&p.indices, &p.repeats, mesh))
+        .collect();
+    let summary = format!(
+        "{}×{} atlas, {} charts, {:.0}% used, {:.3} texels/m",
+        atlas.width,
+        atlas.height,
+        atlas.chart_count,
+        atlas.utilization * 100.0,
+        atlas.texels_per_unit
+    );
+    Ok(((atlas, reused), summary))
+}
+
+/// The texelize stage: the atlas's covered texels, and the stage's summary.
+fn texelize_atlas(gpu: &Gpu, scene: &Scene, atlas: &Atlas) -> Result<(TexelSet, String)> {
+    let texels = match atlas.width * atlas.height {
+        0 => None,
+        _ => Some(texelize::run(gpu, scene, atlas)?).filter(|t| !t.texels.is_empty()),
+    };
+    // Too low a density leaves nothing to bake: the user's to change, not a GPU failure.
+    let Some(texels) = texels else {
+        bail!(
+            "at {} texels per metre the scene covers no lightmap texel: raise --texels-per-unit",
+            atlas.texels_per_unit
+        );
+    };
+    let summary = format!("{} texels covering {:.4} m²", texels.texels.len(), texels.total_area());
+    Ok((texels, summary))
+}
+
+/// The solve stage's summary: what each pass that ran did.
+fn solve_summary(solution: &Solution, texels: &TexelSet) -> String {
+    let mut parts = Vec::new();
+    if let Some(d) = &solution.direct {
+        parts.push(format!("{} lights × {} texels, {} rays", d.lights, texels.texels.len(), d.rays));
+    }
+    if let Some(p) = &solution.punctual {
+        parts.push(format!("{} punctual lights along {} shadow rays in {:.1} s", p.lights, p.rays, p.seconds));
+    }
+    if let Some(b) = &solution.bounce {
+        parts.push(format!(
+            "{} shots from {} patches ({}), {:.2}% unshot",
+            b.shots,
+            b.patches,
+            b.stopped_by,
+            b.unshot_fraction * 100.0
+        ));
+    }
+    if let Some(c) = solution.contact.as_ref().filter(|c| c.gathered > 0) {
+        parts.push(format!(
+            "{} texels in contact gathered along rays ({} with traced direct light) in {:.1} s",
+            c.gathered, c.traced, c.seconds
+        ));
+    }
+    if parts.is_empty() { "nothing to solve".to_string() } else { parts.join("; ") }
 }
 
 /// What happens to the scene's punctual lights, for the user: baked, or
@@ -347,21 +359,7 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
     if let Some(env) = &config.environment {
         inputs.push(InputFile::hash("environment", env)?);
     }
-
-    let environment = match &config.environment {
-        Some(path) => {
-            progress.stage("", "environment");
-            let probe = MemoryProbe::start(None);
-            let (lights, mut report) = load_environment(path, &config.environment_options)?;
-            report.memory = probe.and_then(|p| p.finish(None));
-            for notice in &report.notices {
-                progress.notice(notice);
-            }
-            progress.finish(&format!("{} lights from {}×{} map", report.lights, report.width, report.height));
-            Some((lights, report))
-        }
-        None => None,
-    };
+    let environment = config.environment.as_ref().map(|path| environment_stage(path, config, progress)).transpose()?;
 
     // `--reference` traces against the full-resolution map, not the light set.
     let mut bake_options = config.bake.clone();
@@ -372,59 +370,8 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
 
     let mut scenes = Vec::new();
     for input in &config.inputs {
-        let mut stages = Vec::new();
-        let scene = stage(gpu, progress, &mut stages, &input_stem(input), "import", |_| {
-            let scene = import::load_with(input, &config.import)?;
-            let summary = format!("{} primitives, {} triangles", scene.primitives.len(), scene.triangle_count());
-            Ok((scene, summary))
-        })?;
-        for notice in &scene.notices {
-            progress.notice(notice);
-        }
-        staging.protect(export::source_files(&scene.source));
-        // Light sources of the scene's own: emissive materials, punctual lights it bakes.
-        let own_light = scene.materials.iter().any(|m| m.emission.iter().any(|&e| e > 0.0))
-            || config.bake.solve.punctual && !scene.lights.is_empty();
-        match (&environment, &config.environment) {
-            (None, _) if !own_light => {
-                bail!(
-                    "input '{}': nothing lights the scene: give --env, or use emissive materials or punctual lights",
-                    input.display()
-                )
-            }
-            (Some((lights, _)), Some(env)) if lights.lights.is_empty() && !own_light => bail!(
-                "environment '{}': the map has no energy (every texel is black) and input '{}' has no emissive \
-                 materials or punctual lights: nothing lights the scene",
-                env.display(),
-                input.display()
-            ),
-            _ => {}
-        }
         let lights = environment.as_ref().map(|(lights, _)| lights);
-        let baked = bake_scene(gpu, scene, lights, &bake_options, progress)
-            .with_context(|| format!("input '{}'", input.display()))?;
-        stages.extend(baked.stages.iter().cloned());
-        let exported = stage(gpu, progress, &mut stages, &baked.scene.name, "export", |_| {
-            let results = export::Input {
-                scene: &baked.scene,
-                atlas: &baked.atlas,
-                texels: &baked.texels,
-                lightmap: &baked.solution.lightmap,
-                uv1_reused: baked.uv1_reused,
-            };
-            let stats = export::run(&results, &config.bake.export, staging.dir())
-                .with_context(|| format!("input '{}': export", input.display()))?;
-            let summary = format!("{} files", stats.files.len());
-            Ok((stats, summary))
-        })?;
-        let mut scene = scene_report(input, &baked, stages, exported, &config.bake, &staging);
-        if config.report.plot {
-            let path = staging.dir().join(format!("{}.convergence.svg", scene.name));
-            let svg = plot::convergence_svg(&scene).with_context(|| format!("input '{}': plot", input.display()))?;
-            std::fs::write(&path, svg).with_context(|| format!("writing {}", path.display()))?;
-            scene.outputs.push(staging.final_path(&path));
-        }
-        scenes.push(scene);
+        scenes.push(bake_input(gpu, config, input, lights, &bake_options, &mut staging, progress)?);
     }
 
     let report = Report {
@@ -443,6 +390,95 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
     Ok(report)
 }
 
+/// The environment stage of `run`: the map at `path` loaded and its lights
+/// extracted, once for every input.
+fn environment_stage(
+    path: &Path,
+    config: &Config,
+    progress: &mut dyn Progress,
+) -> Result<(LightSet, EnvironmentReport)> {
+    progress.stage("", "environment");
+    let probe = MemoryProbe::start(None);
+    let (lights, mut report) = load_environment(path, &config.environment_options)?;
+    report.memory = probe.and_then(|p| p.finish(None));
+    for notice in &report.notices {
+        progress.notice(notice);
+    }
+    progress.finish(&format!("{} lights from {}×{} map", report.lights, report.width, report.height));
+    Ok((lights, report))
+}
+
+/// One input of `run`: imported, baked under the environment's `lights`
+/// and exported into the staging folder (with its plot, `--plot`).
+fn bake_input(
+    gpu: &Gpu,
+    config: &Config,
+    input: &Path,
+    lights: Option<&LightSet>,
+    bake_options: &BakeOptions,
+    staging: &mut output::Staging,
+    progress: &mut dyn Progress,
+) -> Result<SceneReport> {
+    let mut stages = Vec::new();
+    let scene = stage(gpu, progress, &mut stages, &input_stem(input), "import", |_| {
+        let scene = import::load_with(input, &config.import)?;
+        let summary = format!("{} primitives, {} triangles", scene.primitives.len(), scene.triangle_count());
+        Ok((scene, summary))
+    })?;
+    for notice in &scene.notices {
+        progress.notice(notice);
+    }
+    staging.protect(export::source_files(&scene.source));
+    check_lit(config, input, &scene, lights)?;
+    let baked = bake_scene(gpu, scene, lights, bake_options, progress)
+        .with_context(|| format!("input '{}'", input.display()))?;
+    stages.extend(baked.stages.iter().cloned());
+    let exported = stage(gpu, progress, &mut stages, &baked.scene.name, "export", |_| {
+        let results = export::Input {
+            scene: &baked.scene,
+            atlas: &baked.atlas,
+            texels: &baked.texels,
+            lightmap: &baked.solution.lightmap,
+            uv1_reused: baked.uv1_reused,
+        };
+        let stats = export::run(&results, &config.bake.export, staging.dir())
+            .with_context(|| format!("input '{}': export", input.display()))?;
+        let summary = format!("{} files", stats.files.len());
+        Ok((stats, summary))
+    })?;
+    let mut scene = scene_report(input, &baked, stages, exported, &config.bake, staging);
+    if config.report.plot {
+        let path = staging.dir().join(format!("{}.convergence.svg", scene.name));
+        let svg = plot::convergence_svg(&scene).with_context(|| format!("input '{}': plot", input.display()))?;
+        std::fs::write(&path, svg).with_context(|| format!("writing {}", path.display()))?;
+        scene.outputs.push(staging.final_path(&path));
+    }
+    Ok(scene)
+}
+
+/// Refuses an input nothing lights: no environment `lights` (or a black
+/// map) and no light sources of its own.
+fn check_lit(config: &Config, input: &Path, scene: &Scene, lights: Option<&LightSet>) -> Result<()> {
+    // Light sources of the scene's own: emissive materials, punctual lights it bakes.
+    let own_light = scene.materials.iter().any(|m| m.emission.iter().any(|&e| e > 0.0))
+        || config.bake.solve.punctual && !scene.lights.is_empty();
+    match (lights, &config.environment) {
+        (None, _) if !own_light => {
+            bail!(
+                "input '{}': nothing lights the scene: give --env, or use emissive materials or punctual lights",
+                input.display()
+            )
+        }
+        (Some(lights), Some(env)) if lights.lights.is_empty() && !own_light => bail!(
+            "environment '{}': the map has no energy (every texel is black) and input '{}' has no emissive \
+             materials or punctual lights: nothing lights the scene",
+            env.display(),
+            input.display()
+        ),
+        _ => Ok(()),
+    }
+}
+
 fn input_stem(input: &Path) -> String {
     input.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()
 }
@@ -457,19 +493,7 @@ fn scene_report(
 ) -> SceneReport {
     let scene = &baked.scene;
     let keys: Vec<_> = scene.primitives.iter().map(scene::ScenePrimitive::key).collect();
-    let names: Vec<String> = scene
-        .primitives
-        .iter()
-        .map(|p| {
-            let mesh = scene.source.document.meshes().nth(p.mesh);
-            let node = scene.source.document.nodes().nth(p.node);
-            let label = node
-                .and_then(|n| n.name().map(str::to_string))
-                .or_else(|| mesh.and_then(|m| m.name().map(str::to_string)));
-            let instance = p.instance.map(|k| format!("[{k}]")).unwrap_or_default();
-            format!("{}{instance}#{}", label.unwrap_or_else(|| format!("node{}", p.node)), p.primitive)
-        })
-        .collect();
+    let names = primitive_names(scene);
     let mut notices = baked.notices.clone();
     notices.extend(exported.notices.iter().cloned());
     SceneReport {
@@ -495,48 +519,7 @@ fn scene_report(
             covered: baked.texels.texels.len(),
             area: baked.texels.total_area(),
             dilated: exported.dilated_texels,
-            fixups: vec![
-                report::Fixup {
-                    stage: "border".into(),
-                    texels: baked.texels.texels.iter().filter(|t| t.area == 0.0).count(),
-                    what: "texels a chart only borders: placed on the nearest point inside their triangle, \
-                           off the chart's edge, so they see neither through nor under what meets it"
-                        .into(),
-                },
-                report::Fixup {
-                    stage: "supersample".into(),
-                    texels: baked.solution.supersampled,
-                    what: "texels a sharp edge of direct light crosses: the mean of sub-samples over the part of \
-                           their footprint the centre reaches along the surface"
-                        .into(),
-                },
-                report::Fixup {
-                    stage: "contact".into(),
-                    texels: baked.solution.contact.as_ref().map_or(0, |c| c.gathered),
-                    what: "texels another surface comes close to (a ball's underside over the floor, the floor under \
-                           a ring): their bounced light gathered along 256 rays from the texels the rays meet, and \
-                           their direct light traced too where the surface is within two texels"
-                        .into(),
-                },
-                report::Fixup {
-                    stage: "overlap".into(),
-                    texels: baked.solution.overlapped,
-                    what: "texels another surface lies on (facing the same way) or just over: they bounce their \
-                           place's light once between them, not once each; those hidden within a texel under an \
-                           opaque one get no light"
-                        .into(),
-                },
-                report::Fixup {
-                    stage: "dilation".into(),
-                    texels: exported.dilated_texels,
-                    what: "padding texels filled from their own chart, so bilinear filtering reads no black".into(),
-                },
-                report::Fixup {
-                    stage: "stitch".into(),
-                    texels: exported.stitch.texels,
-                    what: "texels moved by least squares so the two sides of every UV seam agree".into(),
-                },
-            ],
+            fixups: fixups(baked, &exported),
             seams: exported.stitch.clone(),
         },
         direct: baked.solution.direct.clone(),
@@ -546,4 +529,68 @@ fn scene_report(
         energy: report::primitive_energy(&baked.texels, &baked.solution, &keys, &names),
         reference: baked.reference.clone(),
     }
+}
+
+/// Each primitive's name in the report: its node's name (else its mesh's,
+/// else `nodeN`), the instance in brackets, then `#` and its index.
+fn primitive_names(scene: &Scene) -> Vec<String> {
+    scene
+        .primitives
+        .iter()
+        .map(|p| {
+            let mesh = scene.source.document.meshes().nth(p.mesh);
+            let node = scene.source.document.nodes().nth(p.node);
+            let label = node
+                .and_then(|n| n.name().map(str::to_string))
+                .or_else(|| mesh.and_then(|m| m.name().map(str::to_string)));
+            let instance = p.instance.map(|k| format!("[{k}]")).unwrap_or_default();
+            format!("{}{instance}#{}", label.unwrap_or_else(|| format!("node{}", p.node)), p.primitive)
+        })
+        .collect()
+}
+
+/// What each fix-up stage did to the texels, for the report.
+fn fixups(baked: &Baked, exported: &export::ExportStats) -> Vec<report::Fixup> {
+    vec![
+        report::Fixup {
+            stage: "border".into(),
+            texels: baked.texels.texels.iter().filter(|t| t.area == 0.0).count(),
+            what: "texels a chart only borders: placed on the nearest point inside their triangle, \
+                   off the chart's edge, so they see neither through nor under what meets it"
+                .into(),
+        },
+        report::Fixup {
+            stage: "supersample".into(),
+            texels: baked.solution.supersampled,
+            what: "texels a sharp edge of direct light crosses: the mean of sub-samples over the part of \
+                   their footprint the centre reaches along the surface"
+                .into(),
+        },
+        report::Fixup {
+            stage: "contact".into(),
+            texels: baked.solution.contact.as_ref().map_or(0, |c| c.gathered),
+            what: "texels another surface comes close to (a ball's underside over the floor, the floor under \
+                   a ring): their bounced light gathered along 256 rays from the texels the rays meet, and \
+                   their direct light traced too where the surface is within two texels"
+                .into(),
+        },
+        report::Fixup {
+            stage: "overlap".into(),
+            texels: baked.solution.overlapped,
+            what: "texels another surface lies on (facing the same way) or just over: they bounce their \
+                   place's light once between them, not once each; those hidden within a texel under an \
+                   opaque one get no light"
+                .into(),
+        },
+        report::Fixup {
+            stage: "dilation".into(),
+            texels: exported.dilated_texels,
+            what: "padding texels filled from their own chart, so bilinear filtering reads no black".into(),
+        },
+        report::Fixup {
+            stage: "stitch".into(),
+            texels: exported.stitch.texels,
+            what: "texels moved by least squares so the two sides of every UV seam agree".into(),
+        },
+    ]
 }

@@ -337,22 +337,30 @@ struct Pipelines {
     near_field: wgpu::ComputePipeline,
 }
 
+/// What the bounce pass bounces light between.
+pub struct Surfaces<'a> {
+    pub scene: &'a Scene,
+    pub texels: &'a TexelSet,
+    /// Per texel: the share of its area that bounces light (`overlaps`);
+    /// `None`: all of it.
+    pub shares: Option<&'a [f32]>,
+    pub patches: &'a Patches,
+    /// The direct pass's covered share of each texel's hemisphere, where it ran.
+    pub coverage: Option<&'a [f32]>,
+    pub texels_per_unit: f32,
+}
+
 /// Shoots until converged or out of budget. `lightmap` holds L_lm after the
 /// direct pass and is updated in place; returns what happened.
-#[allow(clippy::too_many_arguments)]
 pub fn run(
     gpu: &Gpu,
-    scene: &Scene,
-    texels: &TexelSet,
-    shares: Option<&[f32]>,
-    patches: &Patches,
+    surfaces: &Surfaces,
     lightmap: &mut [[f32; 3]],
-    coverage: Option<&[f32]>,
-    texels_per_unit: f32,
     options: &BounceOptions,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<BounceStats> {
     let start = Instant::now();
+    let Surfaces { scene, texels, shares, patches, coverage, texels_per_unit } = *surfaces;
     // The GPU weighs each texel's unshot light and what it receives by its
     // share of the area that bounces (`overlaps`); the sums here weigh them
     // by the same areas.
@@ -371,54 +379,215 @@ pub fn run(
             &ones
         }
     };
-    // Initial unshot radiosity: reflected direct light plus emission.
-    let unshot: Vec<[f32; 4]> = texels
-        .texels
-        .iter()
-        .zip(lightmap.iter())
-        .map(|(t, l)| {
-            let [r, g, b] = [0, 1, 2].map(|c| t.albedo[c] * l[c] + t.emission[c]);
-            [r, g, b, 0.0]
-        })
-        .collect();
-    let power_in = texels
-        .texels
-        .iter()
-        .zip(&unshot)
-        .map(|(t, u)| luminance([u[0] as f64, u[1] as f64, u[2] as f64]) * t.area as f64)
-        .sum::<f64>();
-    let initial_closure = coverage.map(|c| covered_share(texels, &unshot, c));
-    let total_area: f64 = texels.total_area();
-    let mean_albedo = {
-        let mut sum = [0.0f64; 3];
-        for t in &texels.texels {
-            for (s, a) in sum.iter_mut().zip(t.albedo) {
-                *s += a as f64 * t.area as f64;
-            }
-        }
-        sum.map(|s| s / total_area.max(1e-30))
-    };
-    // Σ L_lm·A so far (luminance), to turn the ambient term into a relative error.
-    let mut gathered: f64 = texels
-        .texels
-        .iter()
-        .zip(lightmap.iter())
-        .map(|(t, l)| luminance([l[0] as f64, l[1] as f64, l[2] as f64]) * t.area as f64)
-        .sum();
+    let sums = Sums::new(texels, lightmap, coverage);
+    let (params, dispatch) = params(gpu, scene, texels, patches, texels_per_unit, options);
+    let patch_coverage = patch_coverage(texels, patches, coverage);
+    let inputs =
+        Inputs { texels: gpu_texels, shares, patches, patch_coverage: &patch_coverage, unshot: &sums.unshot, lightmap };
+    // Without a direct pass (emitters only) the share is unknown: normalize.
+    let normalized = sums.initial_closure.is_none_or(|f| f * luminance(sums.mean_albedo) >= NORMALIZE_FROM);
+    let passes = Passes::new(gpu, scene, &inputs, params, dispatch, options.face_list_bytes, normalized);
 
+    let max_shots = options.max_shots.unwrap_or(64 * patches.patches.len() as u64);
+    let mut tally = Tally { gathered: sums.gathered, ..Tally::default() };
+    let (stopped_by, last) = loop {
+        // Sum and select on the GPU; read back only the totals.
+        let stats = passes.select(gpu)?;
+        let settled = tally.record(gpu, &stats, &sums, &passes.resources, options.probes.as_deref(), start)?;
+        // Converged when the unshot light, each patch's weighted by how much
+        // of its hemisphere the scene covers, is a `tolerance` share of the
+        // light put in, weighted so: a room seen through an opening in a
+        // sunlit scene, where most of the light put in leaves for the sky,
+        // is shot until its own light has settled.
+        if settled <= options.tolerance || stats.shooters == 0 {
+            break (StopReason::Converged, stats);
+        }
+        if tally.shots >= max_shots {
+            break (StopReason::MaxShots, stats);
+        }
+        if options.max_seconds.is_some_and(|max| start.elapsed().as_secs_f64() >= max) {
+            break (StopReason::MaxTime, stats);
+        }
+        passes.shoot(gpu);
+        tally.shots += stats.shooters as u64;
+        tally.shot_total += stats.shot[3] as f64;
+        tally.batches += 1;
+        // Progress in "orders of magnitude converged" towards the tolerance.
+        let goal = (1.0 / options.tolerance.max(1e-12)).ln();
+        let done = ((1.0 / settled.max(1e-300)).ln() / goal * 1000.0).clamp(0.0, 1000.0);
+        progress(done as u64, 1000);
+    };
+
+    let values: Vec<[f32; 4]> = read_buffer(gpu, &passes.resources.lightmap, texels.texels.len())?;
+    let remaining: Vec<[f32; 4]> = read_buffer(gpu, &passes.resources.unshot, texels.texels.len())?;
+    gpu.check("solve (bounce)")?;
+    // How much of the light not yet shot would land. Converged, the share the
+    // shots' light landed (it goes where theirs went, `ambient_weights`): the
+    // coverage counts surfaces seen from behind, which absorb it, and would
+    // pile it onto the few texels a shot reached. Stopped by a budget, the
+    // scene-covered share of each texel's hemisphere (from the direct pass),
+    // weighted by its unshot power; without a direct pass, the measured one.
+    let converged = stopped_by == StopReason::Converged;
+    let closure = match coverage {
+        Some(coverage) if !converged => covered_share(texels, &remaining, coverage),
+        _ => measured_closure(tally.received_total, tally.shot_total),
+    };
+    let ambient = ambient_term(last.unshot, closure, sums.mean_albedo, sums.total_area).map(|a| a as f32);
+    let weights = ambient_weights(texels, &values, lightmap, coverage, converged);
+    for ((out, v), w) in lightmap.iter_mut().zip(values).zip(weights) {
+        *out = [0, 1, 2].map(|c| v[c] + ambient[c] * w);
+    }
+    let unshot_fraction = tally.trace.last().map_or(0.0, |t| t.unshot_fraction);
+    Ok(BounceStats {
+        patches: patches.patches.len(),
+        shots: tally.shots,
+        batches: tally.batches,
+        seconds: start.elapsed().as_secs_f64() - tally.probe_seconds,
+        stopped_by,
+        unshot_fraction,
+        closure,
+        shot_closure: if tally.shot_total > 0.0 { tally.received_total / tally.shot_total } else { 1.0 },
+        ambient,
+        normalized,
+        trace: tally.trace,
+    })
+}
+
+/// The pass's sums over the texels, each weighted by its area (its share
+/// of it, `overlaps`), before the first shot.
+struct Sums {
+    /// Initial unshot radiosity per texel: reflected direct light plus emission.
+    unshot: Vec<[f32; 4]>,
+    /// Σ ΔL·A of `unshot` (luminance): the power put in.
+    power_in: f64,
+    /// The share of the power put in that would land, from the direct
+    /// pass's coverage (`None` without one).
+    initial_closure: Option<f64>,
+    total_area: f64,
+    mean_albedo: [f64; 3],
+    /// Σ L_lm·A of the direct light (luminance).
+    gathered: f64,
+}
+
+impl Sums {
+    fn new(texels: &TexelSet, lightmap: &[[f32; 3]], coverage: Option<&[f32]>) -> Sums {
+        let unshot: Vec<[f32; 4]> = texels
+            .texels
+            .iter()
+            .zip(lightmap.iter())
+            .map(|(t, l)| {
+                let [r, g, b] = [0, 1, 2].map(|c| t.albedo[c] * l[c] + t.emission[c]);
+                [r, g, b, 0.0]
+            })
+            .collect();
+        let power_in = texels
+            .texels
+            .iter()
+            .zip(&unshot)
+            .map(|(t, u)| luminance([u[0] as f64, u[1] as f64, u[2] as f64]) * t.area as f64)
+            .sum::<f64>();
+        let initial_closure = coverage.map(|c| covered_share(texels, &unshot, c));
+        let total_area: f64 = texels.total_area();
+        let mean_albedo = {
+            let mut sum = [0.0f64; 3];
+            for t in &texels.texels {
+                for (s, a) in sum.iter_mut().zip(t.albedo) {
+                    *s += a as f64 * t.area as f64;
+                }
+            }
+            sum.map(|s| s / total_area.max(1e-30))
+        };
+        let gathered: f64 = texels
+            .texels
+            .iter()
+            .zip(lightmap.iter())
+            .map(|(t, l)| luminance([l[0] as f64, l[1] as f64, l[2] as f64]) * t.area as f64)
+            .sum();
+        Sums { unshot, power_in, initial_closure, total_area, mean_albedo, gathered }
+    }
+}
+
+/// The batch loop's running totals.
+#[derive(Default)]
+struct Tally {
+    shots: u64,
+    batches: u64,
+    trace: Vec<TracePoint>,
+    /// Σ of the power shot and of the power that landed (luminance).
+    shot_total: f64,
+    received_total: f64,
+    /// Σ L_lm·A so far (luminance), to turn the ambient term into a relative error.
+    gathered: f64,
+    /// Time spent reading back `--reference` probes, left out of the trace's clock.
+    probe_seconds: f64,
+    /// The first batch's coverage-weighted unshot power: the light put in.
+    landing_in: Option<f64>,
+}
+
+impl Tally {
+    /// Adds a batch's totals and its trace point; returns how much of the
+    /// light put in is still to settle (coverage-weighted).
+    fn record(
+        &mut self,
+        gpu: &Gpu,
+        stats: &GpuStats,
+        sums: &Sums,
+        resources: &Resources,
+        probes: Option<&Probes>,
+        start: Instant,
+    ) -> Result<f64> {
+        self.received_total += stats.received[3] as f64;
+        self.gathered += stats.received[3] as f64;
+        let unshot_power = stats.unshot[3] as f64;
+        let unshot_fraction = if sums.power_in > 0.0 { unshot_power / sums.power_in } else { 0.0 };
+        let closure = sums.initial_closure.unwrap_or_else(|| measured_closure(self.received_total, self.shot_total));
+        let ambient = ambient_term(stats.unshot, closure, sums.mean_albedo, sums.total_area);
+        let error_estimate =
+            if self.gathered > 0.0 { luminance(ambient) * sums.total_area / self.gathered } else { 0.0 };
+        let seconds = start.elapsed().as_secs_f64() - self.probe_seconds;
+        let probe_start = Instant::now();
+        let reference_error = probe_error(gpu, &resources.lightmap, probes, ambient)?;
+        self.probe_seconds += probe_start.elapsed().as_secs_f64();
+        self.trace.push(TracePoint { seconds, shots: self.shots, unshot_fraction, error_estimate, reference_error });
+        let landing_in = *self.landing_in.get_or_insert(stats.landing as f64);
+        Ok(if landing_in > 0.0 { stats.landing as f64 / landing_in } else { 0.0 })
+    }
+}
+
+/// How each batch is laid out: shooters, hemicube faces in the depth
+/// atlas, and workgroups over the texels and over the patches.
+#[derive(Clone, Copy)]
+struct Dispatch {
+    shooter_count: u32,
+    face: u32,
+    tiles_per_row: u32,
+    tile_rows: u32,
+    groups: (u32, u32),
+    patch_groups: (u32, u32),
+}
+
+/// The shaders' parameters and the batches' layout.
+fn params(
+    gpu: &Gpu,
+    scene: &Scene,
+    texels: &TexelSet,
+    patches: &Patches,
+    texels_per_unit: f32,
+    options: &BounceOptions,
+) -> (BounceParams, Dispatch) {
     let radius = scene_radius(scene);
     let shooter_count = options.shooters_per_batch.clamp(1, MAX_SHOOTERS);
     let face = options.hemicube_size.clamp(16, 2048);
     let tiles_per_row = ((gpu.limits.max_texture_dimension_2d / (3 * face)).max(1)).min(shooter_count);
     let tile_rows = shooter_count.div_ceil(tiles_per_row);
     let texel_world = 1.0 / texels_per_unit.max(1e-30);
-    let (groups_x, groups_y) = gpu.dispatch_size(texels.texels.len() as u32, 64);
-    let (patch_groups_x, patch_groups_y) = gpu.dispatch_size(patches.patches.len() as u32, 64);
+    let groups = gpu.dispatch_size(texels.texels.len() as u32, 64);
+    let patch_groups = gpu.dispatch_size(patches.patches.len() as u32, 64);
     let params = BounceParams {
         texel_count: texels.texels.len() as u32,
         patch_count: patches.patches.len() as u32,
         shooter_count,
-        row_stride: groups_x * 64,
+        row_stride: groups.0 * 64,
         face_size: face as f32,
         tiles_per_row,
         far: 2.0 * radius,
@@ -432,108 +601,97 @@ pub fn run(
         in_plane: shooter_cull::in_plane(&texels.texels),
         _pad: 0,
     };
-    let patch_params = params.with_row_stride(patch_groups_x * 64);
+    (params, Dispatch { shooter_count, face, tiles_per_row, tile_rows, groups, patch_groups })
+}
 
-    let patch_coverage = patch_coverage(texels, patches, coverage);
-    let inputs =
-        Inputs { texels: gpu_texels, shares, patches, patch_coverage: &patch_coverage, unshot: &unshot, lightmap };
-    let resources = resources(gpu, scene, &inputs, params, face, tiles_per_row, tile_rows);
-    let (casters, faces) = (&resources.casters, &resources.hemicube_faces);
-    let shooter_cull = ShooterCull::new(gpu, &gpu_texels.texels, params, &resources.shooters);
-    let cull = HemicubeCull::new(gpu, casters, faces, 5 * shooter_count, params.near, options.face_list_bytes);
-    // Without a direct pass (emitters only) the share is unknown: normalize.
-    let normalized = initial_closure.is_none_or(|f| f * luminance(mean_albedo) >= NORMALIZE_FROM);
-    if !normalized {
-        // Every patch's scale known (1): the measure and finish passes skip.
-        let ones = vec![1f32; patches.patches.len().max(1)];
-        gpu.queue.write_buffer(&resources.patch_scale, 0, bytemuck::cast_slice(&ones));
+/// The pass on the GPU: its buffers, pipelines and culls, and the two
+/// submissions of each batch.
+struct Passes {
+    resources: Resources,
+    pipelines: Pipelines,
+    shooter_cull: ShooterCull,
+    /// The casters each hemicube face draws (`None`: every caster).
+    cull: Option<HemicubeCull>,
+    params: BounceParams,
+    dispatch: Dispatch,
+    /// Whether each patch's form factors are normalized (`NORMALIZE_FROM`).
+    normalized: bool,
+}
+
+impl Passes {
+    fn new(
+        gpu: &Gpu,
+        scene: &Scene,
+        inputs: &Inputs,
+        params: BounceParams,
+        dispatch: Dispatch,
+        face_list_bytes: u64,
+        normalized: bool,
+    ) -> Passes {
+        let Dispatch { shooter_count, face, tiles_per_row, tile_rows, .. } = dispatch;
+        let resources = resources(gpu, scene, inputs, params, face, tiles_per_row, tile_rows);
+        let (casters, faces) = (&resources.casters, &resources.hemicube_faces);
+        let shooter_cull = ShooterCull::new(gpu, &inputs.texels.texels, params, &resources.shooters);
+        let cull = HemicubeCull::new(gpu, casters, faces, 5 * shooter_count, params.near, face_list_bytes);
+        if !normalized {
+            // Every patch's scale known (1): the measure and finish passes skip.
+            let ones = vec![1f32; inputs.patches.patches.len().max(1)];
+            gpu.queue.write_buffer(&resources.patch_scale, 0, bytemuck::cast_slice(&ones));
+        }
+        let patch_params = params.with_row_stride(dispatch.patch_groups.0 * 64);
+        let patch_params_buffer = gpu.uniform_buffer("solve_patch_power params", &patch_params);
+        let pipelines = Pipelines::new(gpu, &resources, &patch_params_buffer, &shooter_cull.group_shooters);
+        Passes { resources, pipelines, shooter_cull, cull, params, dispatch, normalized }
     }
-    let patch_params_buffer = gpu.uniform_buffer("solve_patch_power params", &patch_params);
-    let pipelines = pipelines(gpu, &resources, &patch_params_buffer, &shooter_cull.group_shooters);
 
-    let max_shots = options.max_shots.unwrap_or(64 * patches.patches.len() as u64);
-    let mut shots = 0u64;
-    let mut batches = 0u64;
-    let mut trace = Vec::new();
-    let mut shot_total = 0.0f64;
-    let mut received_total = 0.0f64;
-    let mut stopped_by = StopReason::Converged;
-    // Time spent reading back `--reference` probes, left out of the trace's clock.
-    let mut probe_seconds = 0.0f64;
-    let mut last;
-    // The first batch's coverage-weighted unshot power: the light put in.
-    let mut landing_in = None;
-    loop {
-        // Sum and select on the GPU; read back only the totals.
+    /// Sums every patch's unshot power, chooses the batch's shooters and
+    /// their light by sub-cells, and reads back the totals.
+    fn select(&self, gpu: &Gpu) -> Result<GpuStats> {
+        let (pipelines, dispatch) = (&self.pipelines, &self.dispatch);
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
             pass.set_pipeline(&pipelines.power.0);
             pass.set_bind_group(0, &pipelines.power.1, &[]);
-            pass.dispatch_workgroups(patch_groups_x, patch_groups_y, 1);
+            pass.dispatch_workgroups(dispatch.patch_groups.0, dispatch.patch_groups.1, 1);
             pass.set_pipeline(&pipelines.select.0);
             pass.set_bind_group(0, &pipelines.select.1, &[]);
             pass.dispatch_workgroups(1, 1, 1);
             pass.set_pipeline(&pipelines.shooter_cells);
             pass.set_bind_group(0, &pipelines.power.1, &[]);
-            pass.dispatch_workgroups(shooter_count, 1, 1);
+            pass.dispatch_workgroups(dispatch.shooter_count, 1, 1);
         }
         gpu.queue.submit([encoder.finish()]);
-        let stats: GpuStats = read_buffer(gpu, &resources.stats, 1)?[0];
-        received_total += stats.received[3] as f64;
-        gathered += stats.received[3] as f64;
-        last = stats;
-        let unshot_power = stats.unshot[3] as f64;
-        let unshot_fraction = if power_in > 0.0 { unshot_power / power_in } else { 0.0 };
-        let closure = initial_closure.unwrap_or_else(|| measured_closure(received_total, shot_total));
-        let ambient = ambient_term(stats.unshot, closure, mean_albedo, total_area);
-        let error_estimate = if gathered > 0.0 { luminance(ambient) * total_area / gathered } else { 0.0 };
-        let seconds = start.elapsed().as_secs_f64() - probe_seconds;
-        let probe_start = Instant::now();
-        let reference_error = probe_error(gpu, &resources.lightmap, options.probes.as_deref(), ambient)?;
-        probe_seconds += probe_start.elapsed().as_secs_f64();
-        trace.push(TracePoint { seconds, shots, unshot_fraction, error_estimate, reference_error });
+        Ok(read_buffer(gpu, &self.resources.stats, 1)?[0])
+    }
 
-        // Converged when the unshot light, each patch's weighted by how much
-        // of its hemisphere the scene covers, is a `tolerance` share of the
-        // light put in, weighted so: a room seen through an opening in a
-        // sunlit scene, where most of the light put in leaves for the sky,
-        // is shot until its own light has settled.
-        let landing_in = *landing_in.get_or_insert(stats.landing as f64);
-        let settled = if landing_in > 0.0 { stats.landing as f64 / landing_in } else { 0.0 };
-        if settled <= options.tolerance || stats.shooters == 0 {
-            break;
-        }
-        if shots >= max_shots {
-            stopped_by = StopReason::MaxShots;
-            break;
-        }
-        if options.max_seconds.is_some_and(|max| start.elapsed().as_secs_f64() >= max) {
-            stopped_by = StopReason::MaxTime;
-            break;
-        }
-
+    /// Renders the chosen shooters' hemicubes and gathers their light at
+    /// every texel: the far field everywhere, then the near field where
+    /// `main` listed it.
+    fn shoot(&self, gpu: &Gpu) {
+        let (pipelines, resources) = (&self.pipelines, &self.resources);
+        let Dispatch { shooter_count, face, tiles_per_row, groups, .. } = self.dispatch;
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         encoder.clear_buffer(&resources.near_list, 0, Some(8));
         // What each hemicube face of the batch draws (None: every caster).
-        if let Some(cull) = &cull {
+        if let Some(cull) = &self.cull {
             cull.record(&mut encoder);
         }
-        render_hemicubes(&mut encoder, &pipelines, &resources, cull.as_ref(), shooter_count, face, tiles_per_row);
+        render_hemicubes(&mut encoder, pipelines, resources, self.cull.as_ref(), shooter_count, face, tiles_per_row);
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
-            shooter_cull.record(&mut pass);
+            self.shooter_cull.record(&mut pass);
             pass.set_bind_group(0, &pipelines.shoot.1, &[]);
-            if normalized {
+            if self.normalized {
                 pass.set_pipeline(&pipelines.measure);
-                pass.dispatch_workgroups(params.chunk_count, shooter_count.div_ceil(MEASURE_SLOTS), 1);
+                pass.dispatch_workgroups(self.params.chunk_count, shooter_count.div_ceil(MEASURE_SLOTS), 1);
                 pass.set_pipeline(&pipelines.finish.0);
                 pass.set_bind_group(1, &pipelines.finish.1, &[]);
                 pass.dispatch_workgroups(shooter_count, 1, 1);
             }
             pass.set_pipeline(&pipelines.shoot.0);
             pass.set_bind_group(1, &pipelines.slot_scales, &[]);
-            pass.dispatch_workgroups(groups_x, groups_y, 1);
+            pass.dispatch_workgroups(groups.0, groups.1, 1);
             pass.set_pipeline(&pipelines.near_dispatch.0);
             pass.set_bind_group(0, &pipelines.near_dispatch.1, &[]);
             pass.dispatch_workgroups(1, 1, 1);
@@ -546,36 +704,25 @@ pub fn run(
             pass.dispatch_workgroups_indirect(&resources.near_args, 0);
         }
         gpu.queue.submit([encoder.finish()]);
-        shots += stats.shooters as u64;
-        shot_total += stats.shot[3] as f64;
-        batches += 1;
-        // Progress in "orders of magnitude converged" towards the tolerance.
-        let goal = (1.0 / options.tolerance.max(1e-12)).ln();
-        let done = ((1.0 / settled.max(1e-300)).ln() / goal * 1000.0).clamp(0.0, 1000.0);
-        progress(done as u64, 1000);
     }
+}
 
-    let values: Vec<[f32; 4]> = read_buffer(gpu, &resources.lightmap, texels.texels.len())?;
-    let remaining: Vec<[f32; 4]> = read_buffer(gpu, &resources.unshot, texels.texels.len())?;
-    gpu.check("solve (bounce)")?;
-    // How much of the light not yet shot would land. Converged, the share the
-    // shots' light landed (it goes where theirs went, below): the coverage
-    // counts surfaces seen from behind, which absorb it, and would pile it
-    // onto the few texels a shot reached. Stopped by a budget, the
-    // scene-covered share of each texel's hemisphere (from the direct pass),
-    // weighted by its unshot power; without a direct pass, the measured one.
-    let converged = stopped_by == StopReason::Converged;
-    let closure = match coverage {
-        Some(coverage) if !converged => covered_share(texels, &remaining, coverage),
-        _ => measured_closure(received_total, shot_total),
-    };
-    let ambient = ambient_term(last.unshot, closure, mean_albedo, total_area).map(|a| a as f32);
-    let weights = if converged {
+/// Where the ambient term lands: per texel, a weight of area-weighted
+/// mean 1 (1 everywhere when a budget stopped a pass with no direct pass
+/// before it).
+fn ambient_weights(
+    texels: &TexelSet,
+    values: &[[f32; 4]],
+    direct: &[[f32; 3]],
+    coverage: Option<&[f32]>,
+    converged: bool,
+) -> Vec<f32> {
+    if converged {
         // Converged, the little left would land where the shots' light
         // landed: later bounces spread as earlier ones did. A texel no
         // reflected light reached (inside a closed room the light never
         // entered) gets none.
-        let bounced: Vec<f32> = values.iter().zip(lightmap.iter()).map(|(v, d)| bounced_luminance(*v, *d)).collect();
+        let bounced: Vec<f32> = values.iter().zip(direct.iter()).map(|(v, d)| bounced_luminance(*v, *d)).collect();
         mean_one_weights(texels, &bounced)
     } else {
         // Stopped by a budget, early shots say little about where the rest
@@ -585,24 +732,7 @@ pub fn run(
             Some(c) => mean_one_weights(texels, c),
             None => vec![1.0; texels.texels.len()],
         }
-    };
-    for ((out, v), w) in lightmap.iter_mut().zip(values).zip(weights) {
-        *out = [0, 1, 2].map(|c| v[c] + ambient[c] * w);
     }
-    let unshot_fraction = trace.last().map_or(0.0, |t| t.unshot_fraction);
-    Ok(BounceStats {
-        patches: patches.patches.len(),
-        shots,
-        batches,
-        seconds: start.elapsed().as_secs_f64() - probe_seconds,
-        stopped_by,
-        unshot_fraction,
-        closure,
-        shot_closure: if shot_total > 0.0 { received_total / shot_total } else { 1.0 },
-        ambient,
-        normalized,
-        trace,
-    })
 }
 
 /// The radius of the scene's bounding sphere about the centre of its
@@ -784,13 +914,47 @@ fn resources(
     }
 }
 
-fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer, group_shooters: &wgpu::Buffer) -> Pipelines {
-    let compute = wgpu::ShaderStages::COMPUTE;
-    let layout = |label: &str, entries: &[wgpu::BindGroupLayoutEntry]| {
-        gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries })
-    };
+impl Pipelines {
+    fn new(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer, group_shooters: &wgpu::Buffer) -> Pipelines {
+        let (power_layout, power_group) = power_bindings(gpu, r, patch_params);
+        let (select_layout, select_group) = select_bindings(gpu, r);
+        let (shoot_layout, shoot_group) = shoot_bindings(gpu, r, group_shooters);
+        let scales = SlotScales::new(gpu, r);
+        let (near_dispatch_layout, near_dispatch_group) = near_dispatch_bindings(gpu, r);
+        Pipelines {
+            power: (gpu.compute_pipeline(Shader::SolvePatchPower, "main", &[&power_layout]), power_group),
+            shooter_cells: gpu.compute_pipeline(Shader::SolvePatchPower, "shooter_cells_of_batch", &[&power_layout]),
+            select: (gpu.compute_pipeline(Shader::SolveSelect, "main", &[&select_layout]), select_group),
+            hemicube: hemicube_pipelines(gpu, r),
+            measure: gpu.compute_pipeline(Shader::SolveShoot, "measure", &[&shoot_layout]),
+            finish: (
+                gpu.compute_pipeline(Shader::SolveShoot, "finish", &[&shoot_layout, &scales.write_layout]),
+                scales.write_group,
+            ),
+            shoot: (
+                gpu.compute_pipeline(Shader::SolveShoot, "main", &[&shoot_layout, &scales.read_layout]),
+                shoot_group,
+            ),
+            slot_scales: scales.read_group,
+            near_field: gpu.compute_pipeline(Shader::SolveShoot, "near_field", &[&shoot_layout]),
+            near_dispatch: (
+                gpu.compute_pipeline(Shader::SolveShoot, "near_dispatch", &[&near_dispatch_layout]),
+                near_dispatch_group,
+            ),
+        }
+    }
+}
 
-    let power_layout = layout(
+fn bind_group_layout(gpu: &Gpu, label: &str, entries: &[wgpu::BindGroupLayoutEntry]) -> wgpu::BindGroupLayout {
+    gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries })
+}
+
+/// `solve_patch_power`'s bindings: each patch's unshot power, and the
+/// chosen shooters' light by sub-cells.
+fn power_bindings(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> (wgpu::BindGroupLayout, wgpu::BindGroup) {
+    let compute = wgpu::ShaderStages::COMPUTE;
+    let layout = bind_group_layout(
+        gpu,
         "solve_patch_power",
         &[
             // 0: BounceParams (patch count, dispatch stride)
@@ -810,10 +974,10 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer, group_shoote
             gpu::storage_entry(9, true, compute),
         ],
     );
-    let power_group = gpu::bind_buffers(
+    let group = gpu::bind_buffers(
         gpu,
         "solve_patch_power",
-        &power_layout,
+        &layout,
         &[
             patch_params,
             &r.texels,
@@ -827,8 +991,15 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer, group_shoote
             &r.shares,
         ],
     );
+    (layout, group)
+}
 
-    let select_layout = layout(
+/// `solve_select`'s bindings: the batch's shooters, their hemicube faces and
+/// the totals read back.
+fn select_bindings(gpu: &Gpu, r: &Resources) -> (wgpu::BindGroupLayout, wgpu::BindGroup) {
+    let compute = wgpu::ShaderStages::COMPUTE;
+    let layout = bind_group_layout(
+        gpu,
         "solve_select",
         &[
             // 0: BounceParams, 1: patches, 2: per-patch power
@@ -846,10 +1017,10 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer, group_shoote
             gpu::storage_entry(8, false, compute),
         ],
     );
-    let select_group = gpu::bind_buffers(
+    let group = gpu::bind_buffers(
         gpu,
         "solve_select",
-        &select_layout,
+        &layout,
         &[
             &r.params,
             &r.patches,
@@ -862,10 +1033,16 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer, group_shoote
             &r.hemicube_faces,
         ],
     );
+    (layout, group)
+}
 
+/// `solve_hemicube`'s pipelines for opaque and alpha-cut-out casters, and
+/// their bind group.
+fn hemicube_pipelines(gpu: &Gpu, r: &Resources) -> (wgpu::RenderPipeline, wgpu::RenderPipeline, wgpu::BindGroup) {
     let vertex = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
     let [materials_entry, textures_entry, sampler_entry] = Casters::layout_entries(2);
-    let hemicube_layout = layout(
+    let layout = bind_group_layout(
+        gpu,
         "solve_hemicube",
         &[
             // 0: BounceParams (near, far)
@@ -877,9 +1054,9 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer, group_shoote
         ],
     );
     let [materials_binding, textures_binding, sampler_binding] = r.casters.bind_entries(2);
-    let hemicube_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+    let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("solve_hemicube"),
-        layout: &hemicube_layout,
+        layout: &layout,
         entries: &[
             wgpu::BindGroupEntry { binding: 0, resource: r.params.as_entire_binding() },
             materials_binding,
@@ -887,8 +1064,25 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer, group_shoote
             sampler_binding,
         ],
     });
+    let module = gpu.shader(Shader::SolveHemicube);
+    let pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("solve_hemicube"),
+        bind_group_layouts: &[Some(&layout)],
+        immediate_size: 0,
+    });
+    let pipeline =
+        |label, vs, fs| Casters::pipeline(gpu, label, &pipeline_layout, &module, vs, FACE_INSTANCES, Some(fs), &[]);
+    let opaque = pipeline("solve_hemicube", "vs_hemicube", "fs_hemicube");
+    let masked = pipeline("solve_hemicube masked", "vs_hemicube_masked", "fs_hemicube_masked");
+    (opaque, masked, group)
+}
 
-    let shoot_layout = layout(
+/// `solve_shoot`'s bindings (group 0 of every entry point but
+/// `near_dispatch`): the gather, its normalization and the near field.
+fn shoot_bindings(gpu: &Gpu, r: &Resources, group_shooters: &wgpu::Buffer) -> (wgpu::BindGroupLayout, wgpu::BindGroup) {
+    let compute = wgpu::ShaderStages::COMPUTE;
+    let layout = bind_group_layout(
+        gpu,
         "solve_shoot",
         &[
             // 0: BounceParams, 1: texels, 2: patch of each texel, 3: shooters
@@ -914,9 +1108,9 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer, group_shoote
             gpu::storage_entry(15, true, compute),
         ],
     );
-    let shoot_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+    let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("solve_shoot"),
-        layout: &shoot_layout,
+        layout: &layout,
         entries: &[
             wgpu::BindGroupEntry { binding: 0, resource: r.params.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 1, resource: r.texels.as_entire_binding() },
@@ -934,24 +1128,44 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer, group_shoote
             wgpu::BindGroupEntry { binding: 15, resource: group_shooters.as_entire_binding() },
         ],
     });
+    (layout, group)
+}
 
-    // The slots' scales: written by `finish`, read by `main` as a uniform
-    // buffer, so in a group of each one's own.
-    let write_scales_layout = layout("solve_shoot slot scales (written)", &[gpu::storage_entry(1, false, compute)]);
-    let read_scales_layout = layout("solve_shoot slot scales", &[gpu::uniform_entry(0, compute)]);
-    let scales_group = |label, layout, binding| {
-        gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some(label),
-            layout,
-            entries: &[wgpu::BindGroupEntry { binding, resource: r.slot_scales.as_entire_binding() }],
-        })
-    };
-    let write_scales_group = scales_group("solve_shoot slot scales (written)", &write_scales_layout, 1);
-    let read_scales_group = scales_group("solve_shoot slot scales", &read_scales_layout, 0);
+/// The slots' form-factor scales: written by `finish`, read by `main` as a
+/// uniform buffer, so in a group of each one's own.
+struct SlotScales {
+    write_layout: wgpu::BindGroupLayout,
+    write_group: wgpu::BindGroup,
+    read_layout: wgpu::BindGroupLayout,
+    read_group: wgpu::BindGroup,
+}
 
-    // Apart from the shots' group: its output is the near-field pass's
-    // indirect arguments, which no bind group of that pass may hold.
-    let near_dispatch_layout = layout(
+impl SlotScales {
+    fn new(gpu: &Gpu, r: &Resources) -> SlotScales {
+        let compute = wgpu::ShaderStages::COMPUTE;
+        let write_layout =
+            bind_group_layout(gpu, "solve_shoot slot scales (written)", &[gpu::storage_entry(1, false, compute)]);
+        let read_layout = bind_group_layout(gpu, "solve_shoot slot scales", &[gpu::uniform_entry(0, compute)]);
+        let group = |label, layout, binding| {
+            gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(label),
+                layout,
+                entries: &[wgpu::BindGroupEntry { binding, resource: r.slot_scales.as_entire_binding() }],
+            })
+        };
+        let write_group = group("solve_shoot slot scales (written)", &write_layout, 1);
+        let read_group = group("solve_shoot slot scales", &read_layout, 0);
+        SlotScales { write_layout, write_group, read_layout, read_group }
+    }
+}
+
+/// `near_dispatch`'s bindings, apart from the shots' group: its output is
+/// the near-field pass's indirect arguments, which no bind group of that
+/// pass may hold.
+fn near_dispatch_bindings(gpu: &Gpu, r: &Resources) -> (wgpu::BindGroupLayout, wgpu::BindGroup) {
+    let compute = wgpu::ShaderStages::COMPUTE;
+    let layout = bind_group_layout(
+        gpu,
         "solve_shoot near_dispatch",
         &[
             // 10: the near-field list (its count), 12: the workgroup counts (written)
@@ -959,60 +1173,15 @@ fn pipelines(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer, group_shoote
             gpu::storage_entry(12, false, compute),
         ],
     );
-    let near_dispatch_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+    let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("solve_shoot near_dispatch"),
-        layout: &near_dispatch_layout,
+        layout: &layout,
         entries: &[
             wgpu::BindGroupEntry { binding: 10, resource: r.near_list.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 12, resource: r.near_args.as_entire_binding() },
         ],
     });
-
-    let module = gpu.shader(Shader::SolveHemicube);
-    let hemicube_pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some("solve_hemicube"),
-        bind_group_layouts: &[Some(&hemicube_layout)],
-        immediate_size: 0,
-    });
-    let opaque = Casters::pipeline(
-        gpu,
-        "solve_hemicube",
-        &hemicube_pipeline_layout,
-        &module,
-        "vs_hemicube",
-        FACE_INSTANCES,
-        Some("fs_hemicube"),
-        &[],
-    );
-    let masked = Casters::pipeline(
-        gpu,
-        "solve_hemicube masked",
-        &hemicube_pipeline_layout,
-        &module,
-        "vs_hemicube_masked",
-        FACE_INSTANCES,
-        Some("fs_hemicube_masked"),
-        &[],
-    );
-
-    Pipelines {
-        power: (gpu.compute_pipeline(Shader::SolvePatchPower, "main", &[&power_layout]), power_group),
-        shooter_cells: gpu.compute_pipeline(Shader::SolvePatchPower, "shooter_cells_of_batch", &[&power_layout]),
-        select: (gpu.compute_pipeline(Shader::SolveSelect, "main", &[&select_layout]), select_group),
-        hemicube: (opaque, masked, hemicube_group),
-        measure: gpu.compute_pipeline(Shader::SolveShoot, "measure", &[&shoot_layout]),
-        finish: (
-            gpu.compute_pipeline(Shader::SolveShoot, "finish", &[&shoot_layout, &write_scales_layout]),
-            write_scales_group,
-        ),
-        shoot: (gpu.compute_pipeline(Shader::SolveShoot, "main", &[&shoot_layout, &read_scales_layout]), shoot_group),
-        slot_scales: read_scales_group,
-        near_field: gpu.compute_pipeline(Shader::SolveShoot, "near_field", &[&shoot_layout]),
-        near_dispatch: (
-            gpu.compute_pipeline(Shader::SolveShoot, "near_dispatch", &[&near_dispatch_layout]),
-            near_dispatch_group,
-        ),
-    }
+    (layout, group)
 }
 
 /// The five faces of every shooter's hemicube, each into its viewport of

@@ -103,47 +103,8 @@ impl HemicubeCull {
             _pad: [0; 2],
         };
         let params = gpu.uniform_buffer("solve_hemicube_cull params", &params);
-        // Each opaque triangle's solid, and the solids (one unused where
-        // there is none: a binding holds at least one).
-        let none;
-        let (triangle_solid, solids) = match &casters.solids {
-            Some(s) => (&s.triangle_solid[..], &s.solids[..]),
-            None => {
-                none = vec![surfaces::NOT_SOLID; triangles as usize];
-                (&none[..], &[][..])
-            }
-        };
-        let mut solids: Vec<GpuSolid> = solids
-            .iter()
-            .map(|s| GpuSolid {
-                lo: s.lo.into(),
-                outside_facing: if s.outward { 1.0 } else { -1.0 },
-                hi: s.hi.into(),
-                _pad: 0.0,
-            })
-            .collect();
-        if solids.is_empty() {
-            solids.push(GpuSolid::zeroed());
-        }
-        let triangle_solid =
-            gpu.storage_buffer("solve_hemicube_cull triangle solids", triangle_solid, wgpu::BufferUsages::empty());
-        let solids = gpu.storage_buffer("solve_hemicube_cull solids", &solids, wgpu::BufferUsages::empty());
-        let compute = wgpu::ShaderStages::COMPUTE;
-        let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("solve_hemicube_cull"),
-            entries: &[
-                // 0: CullParams, 1: caster vertices, 2: the batch's hemicube faces
-                gpu::uniform_entry(0, compute),
-                gpu::storage_entry(1, true, compute),
-                gpu::storage_entry(2, true, compute),
-                // 3: the indices and lists, 4: the draws (both written)
-                gpu::storage_entry(3, false, compute),
-                gpu::storage_entry(4, false, compute),
-                // 5: each opaque triangle's solid, 6: the solids
-                gpu::storage_entry(5, true, compute),
-                gpu::storage_entry(6, true, compute),
-            ],
-        });
+        let (triangle_solid, solids) = solid_buffers(gpu, casters, triangles);
+        let layout = bind_group_layout(gpu);
         let group = gpu::bind_buffers(
             gpu,
             "solve_hemicube_cull",
@@ -180,4 +141,52 @@ impl HemicubeCull {
     pub fn draw(&self, pass: &mut wgpu::RenderPass, face: u32) {
         pass.draw_indexed_indirect(&self.draws, 4 * DRAW_WORDS * face as u64);
     }
+}
+
+/// Each opaque triangle's solid, and the solids (one unused where there is
+/// none: a binding holds at least one), as the shader's buffers.
+fn solid_buffers(gpu: &Gpu, casters: &Casters, triangles: u32) -> (wgpu::Buffer, wgpu::Buffer) {
+    let none;
+    let (triangle_solid, solids) = match &casters.solids {
+        Some(s) => (&s.triangle_solid[..], &s.solids[..]),
+        None => {
+            none = vec![surfaces::NOT_SOLID; triangles as usize];
+            (&none[..], &[][..])
+        }
+    };
+    let mut solids: Vec<GpuSolid> = solids
+        .iter()
+        .map(|s| GpuSolid {
+            lo: s.lo.into(),
+            outside_facing: if s.outward { 1.0 } else { -1.0 },
+            hi: s.hi.into(),
+            _pad: 0.0,
+        })
+        .collect();
+    if solids.is_empty() {
+        solids.push(GpuSolid::zeroed());
+    }
+    let triangle_solid =
+        gpu.storage_buffer("solve_hemicube_cull triangle solids", triangle_solid, wgpu::BufferUsages::empty());
+    let solids = gpu.storage_buffer("solve_hemicube_cull solids", &solids, wgpu::BufferUsages::empty());
+    (triangle_solid, solids)
+}
+
+fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
+    let compute = wgpu::ShaderStages::COMPUTE;
+    gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("solve_hemicube_cull"),
+        entries: &[
+            // 0: CullParams, 1: caster vertices, 2: the batch's hemicube faces
+            gpu::uniform_entry(0, compute),
+            gpu::storage_entry(1, true, compute),
+            gpu::storage_entry(2, true, compute),
+            // 3: the indices and lists, 4: the draws (both written)
+            gpu::storage_entry(3, false, compute),
+            gpu::storage_entry(4, false, compute),
+            // 5: each opaque triangle's solid, 6: the solids
+            gpu::storage_entry(5, true, compute),
+            gpu::storage_entry(6, true, compute),
+        ],
+    })
 }

@@ -116,15 +116,11 @@ pub fn run(
     options: &SolveOptions,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Solution> {
+    let inputs = Inputs { gpu, scene, texels, texels_per_unit, options };
     let mut skipped = Vec::new();
-    let mut lightmap = vec![[0.0f32; 3]; texels.texels.len()];
     // The scene's triangles on the CPU, built when a pass first asks (the
     // supersample fix-up, the shooter patches, the contact fix-up).
     let occluders = LazyCell::new(|| Occluders::new(scene));
-    let mut direct_stats = None;
-    let mut sees_itself = true;
-    let mut coverage = None;
-    let mut supersampled = 0;
     let environment = lights.filter(|l| !l.lights.is_empty());
     match lights {
         Some(lights) if lights.lights.is_empty() => skip(&mut skipped, "direct", "the environment has no energy"),
@@ -132,86 +128,19 @@ pub fn run(
         Some(_) => {}
     }
     let punctual = (!scene.lights.is_empty()).then(|| Punctual::new(scene, &occluders));
-    let mut punctual_stats = None;
-    // The punctual lights' L_lm, for the contact fix-up.
-    let mut punctual_light = None;
-    if environment.is_some() || punctual.is_some() {
-        let light = direct_light_with(
-            gpu,
-            scene,
-            &occluders,
-            texels,
-            environment,
-            punctual.as_ref(),
-            texels_per_unit,
-            options,
-            progress,
-        )?;
-        supersampled = light.supersampled;
-        if let Some(direct) = light.environment {
-            for (value, e) in lightmap.iter_mut().zip(&direct.irradiance) {
-                *value = e.map(|c| c / std::f32::consts::PI);
-            }
-            sees_itself = direct.stats.shadowed_texels > 0;
-            direct_stats = Some(direct.stats);
-            coverage = Some(direct.coverage);
-        }
-        if let (Some(irradiance), Some(punctual)) = (light.punctual, &punctual) {
-            punctual_stats = Some(punctual.stats(&texels.texels, &irradiance));
-            let own: Vec<[f32; 3]> = irradiance.iter().map(|e| e.map(|c| c / std::f32::consts::PI)).collect();
-            for (value, l) in lightmap.iter_mut().zip(&own) {
-                (0..3).for_each(|c| value[c] += l[c]);
-            }
-            // A point light's light may bounce anywhere.
-            sees_itself = true;
-            punctual_light = Some(own);
-        }
-    }
+    let mut lit = light_directly(&inputs, &occluders, environment, punctual.as_ref(), progress)?;
 
-    let emitters = texels.texels.iter().any(|t| t.area > 0.0 && t.emission.iter().any(|&e| e > 0.0));
-    let reflects =
-        texels.texels.iter().zip(&lightmap).any(|(t, l)| t.area > 0.0 && (0..3).any(|c| t.albedo[c] * l[c] > 0.0));
-    if !emitters {
-        skip(&mut skipped, "emission", "no surface is emissive");
-    }
-    let mut bounce_stats = None;
     // The direct light alone, for the contact fix-up.
-    let direct_only = options.contact.then(|| lightmap.clone());
+    let direct_only = options.contact.then(|| lit.lightmap.clone());
     // Surfaces on or just over one another (`overlaps`).
     let texel_size = 1.0 / texels_per_unit.max(1e-30);
     let overlaps = overlaps::find(scene, texels, texel_size);
-    if !emitters && !reflects {
-        skip(&mut skipped, "bounce", "no light to bounce: the surfaces are black or unlit");
-    } else if !sees_itself {
-        skip(&mut skipped, "bounce", "no surface sees another (every texel sees open sky in every direction)");
-    } else {
-        let patches = patches::build(
-            texels,
-            options.bounce.patches,
-            texel_size,
-            Some(patches::Sight { occluders: &occluders, hidden: overlaps.as_ref().map(|o| o.hidden.as_slice()) }),
-        );
-        // Overlapping surfaces bounce the light of their place once between
-        // them: the bounce pass weighs each texel by its share of the area.
-        let stats = bounce::run(
-            gpu,
-            scene,
-            texels,
-            overlaps.as_ref().map(|o| o.shares.as_slice()),
-            &patches,
-            &mut lightmap,
-            coverage.as_deref(),
-            texels_per_unit,
-            &options.bounce,
-            progress,
-        )?;
-        bounce_stats = Some(stats);
-    }
+    let mut bounce_stats = bounce(&inputs, &occluders, overlaps.as_ref(), &mut lit, &mut skipped, progress)?;
     // What lies hidden under an opaque surface gets no light, whatever the
     // depth maps made of the surface over it (first, so the contact fix-up
     // gathers none of their light).
     if let Some(overlaps) = &overlaps {
-        for (value, &hidden) in lightmap.iter_mut().zip(&overlaps.hidden) {
+        for (value, &hidden) in lit.lightmap.iter_mut().zip(&overlaps.hidden) {
             if hidden {
                 *value = [0.0; 3];
             }
@@ -225,28 +154,144 @@ pub fn run(
         let cell = patches::cell_size(texels, options.bounce.patches) as f64 * texel_size as f64;
         let direct = contact::Direct {
             environment: environment.map(|l| l.lights.as_slice()),
-            punctual: punctual_light.as_deref(),
+            punctual: lit.punctual_light.as_deref(),
             total: direct,
         };
-        let stats = contact::fix(scene, &occluders, texels, hidden, &direct, &mut lightmap, cell, texel_size as f64);
+        let lightmap = &mut lit.lightmap;
+        let stats = contact::fix(scene, &occluders, texels, hidden, &direct, lightmap, cell, texel_size as f64);
         if stats.gathered > 0
             && let Some(bounce) = bounce_stats.as_mut()
         {
-            trace_after_contact(bounce, &stats, &lightmap, options);
+            trace_after_contact(bounce, &stats, lightmap, options);
         }
         contact_stats = Some(stats);
     }
     let overlapped = overlaps.as_ref().map_or(0, Overlaps::count);
     Ok(Solution {
-        lightmap,
-        direct: direct_stats,
-        punctual: punctual_stats,
+        lightmap: lit.lightmap,
+        direct: lit.direct,
+        punctual: lit.punctual,
         bounce: bounce_stats,
         contact: contact_stats,
-        supersampled,
+        supersampled: lit.supersampled,
         overlapped,
         skipped,
     })
+}
+
+/// What every pass of the solve reads.
+struct Inputs<'a> {
+    gpu: &'a Gpu,
+    scene: &'a Scene,
+    texels: &'a TexelSet,
+    texels_per_unit: f32,
+    options: &'a SolveOptions,
+}
+
+/// The lightmap after the direct passes, and what the later passes need of them.
+struct Lit {
+    /// L_lm per texel: the environment's and the punctual lights' light.
+    lightmap: Vec<[f32; 3]>,
+    direct: Option<direct::DirectStats>,
+    punctual: Option<PunctualStats>,
+    /// The punctual lights' L_lm, for the contact fix-up.
+    punctual_light: Option<Vec<[f32; 3]>>,
+    /// The environment pass's covered share of each texel's hemisphere.
+    coverage: Option<Vec<f32>>,
+    /// Whether light may bounce: false where every texel sees open sky in
+    /// every direction.
+    sees_itself: bool,
+    supersampled: usize,
+}
+
+/// The direct passes (environment and punctual lights), when the scene has
+/// either: their light as L_lm per texel (0 without them).
+fn light_directly(
+    inputs: &Inputs,
+    occluders: &LazyCell<Occluders, impl FnOnce() -> Occluders>,
+    environment: Option<&LightSet>,
+    punctual: Option<&Punctual>,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Lit> {
+    let texels = inputs.texels;
+    let mut lit = Lit {
+        lightmap: vec![[0.0f32; 3]; texels.texels.len()],
+        direct: None,
+        punctual: None,
+        punctual_light: None,
+        coverage: None,
+        sees_itself: true,
+        supersampled: 0,
+    };
+    if environment.is_none() && punctual.is_none() {
+        return Ok(lit);
+    }
+    let light = direct_light_with(inputs, occluders, environment, punctual, progress)?;
+    lit.supersampled = light.supersampled;
+    if let Some(direct) = light.environment {
+        for (value, e) in lit.lightmap.iter_mut().zip(&direct.irradiance) {
+            *value = e.map(|c| c / std::f32::consts::PI);
+        }
+        lit.sees_itself = direct.stats.shadowed_texels > 0;
+        lit.direct = Some(direct.stats);
+        lit.coverage = Some(direct.coverage);
+    }
+    if let (Some(irradiance), Some(punctual)) = (light.punctual, punctual) {
+        lit.punctual = Some(punctual.stats(&texels.texels, &irradiance));
+        let own: Vec<[f32; 3]> = irradiance.iter().map(|e| e.map(|c| c / std::f32::consts::PI)).collect();
+        for (value, l) in lit.lightmap.iter_mut().zip(&own) {
+            (0..3).for_each(|c| value[c] += l[c]);
+        }
+        // A point light's light may bounce anywhere.
+        lit.sees_itself = true;
+        lit.punctual_light = Some(own);
+    }
+    Ok(lit)
+}
+
+/// The bounce pass over `lit.lightmap`, or the reason it is left out in
+/// `skipped` (as is emission's, where no surface is emissive).
+fn bounce(
+    inputs: &Inputs,
+    occluders: &LazyCell<Occluders, impl FnOnce() -> Occluders>,
+    overlaps: Option<&Overlaps>,
+    lit: &mut Lit,
+    skipped: &mut Vec<Skipped>,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Option<BounceStats>> {
+    let Inputs { gpu, scene, texels, texels_per_unit, options } = *inputs;
+    let emitters = texels.texels.iter().any(|t| t.area > 0.0 && t.emission.iter().any(|&e| e > 0.0));
+    let reflects =
+        texels.texels.iter().zip(&lit.lightmap).any(|(t, l)| t.area > 0.0 && (0..3).any(|c| t.albedo[c] * l[c] > 0.0));
+    if !emitters {
+        skip(skipped, "emission", "no surface is emissive");
+    }
+    if !emitters && !reflects {
+        skip(skipped, "bounce", "no light to bounce: the surfaces are black or unlit");
+        return Ok(None);
+    }
+    if !lit.sees_itself {
+        skip(skipped, "bounce", "no surface sees another (every texel sees open sky in every direction)");
+        return Ok(None);
+    }
+    let texel_size = 1.0 / texels_per_unit.max(1e-30);
+    let patches = patches::build(
+        texels,
+        options.bounce.patches,
+        texel_size,
+        Some(patches::Sight { occluders, hidden: overlaps.map(|o| o.hidden.as_slice()) }),
+    );
+    // Overlapping surfaces bounce the light of their place once between
+    // them: the bounce pass weighs each texel by its share of the area.
+    let surfaces = bounce::Surfaces {
+        scene,
+        texels,
+        shares: overlaps.map(|o| o.shares.as_slice()),
+        patches: &patches,
+        coverage: lit.coverage.as_deref(),
+        texels_per_unit,
+    };
+    Ok(Some(bounce::run(gpu, &surfaces, &mut lit.lightmap, &options.bounce, progress)?))
 }
 
 /// Ends the bounce pass's convergence trace with a point after the contact
@@ -279,8 +324,8 @@ pub fn direct_light(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<(direct::Direct, usize)> {
     let occluders = LazyCell::new(|| Occluders::new(scene));
-    let light =
-        direct_light_with(gpu, scene, &occluders, texels, Some(lights), None, texels_per_unit, options, progress)?;
+    let inputs = Inputs { gpu, scene, texels, texels_per_unit, options };
+    let light = direct_light_with(&inputs, &occluders, Some(lights), None, progress)?;
     Ok((light.environment.expect("the environment's light was gathered"), light.supersampled))
 }
 
@@ -301,18 +346,14 @@ struct DirectLight {
 /// their footprint (`supersample`), both kinds of light alike. The scene's
 /// triangles on the CPU are built once for the whole solve (here, when the
 /// supersample fix-up plans its sub-samples).
-#[allow(clippy::too_many_arguments)]
 fn direct_light_with(
-    gpu: &Gpu,
-    scene: &Scene,
+    inputs: &Inputs,
     occluders: &LazyCell<Occluders, impl FnOnce() -> Occluders>,
-    texels: &TexelSet,
     environment: Option<&LightSet>,
     punctual: Option<&Punctual>,
-    texels_per_unit: f32,
-    options: &SolveOptions,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<DirectLight> {
+    let Inputs { gpu, scene, texels, texels_per_unit, options } = *inputs;
     let start = std::time::Instant::now();
     let pass = environment.map(|_| direct::DirectPass::new(gpu, scene)).transpose()?;
     let gather = |points: &[Texel], lights: &LightSet, progress: &mut dyn FnMut(u64, u64)| {

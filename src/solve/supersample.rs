@@ -56,90 +56,13 @@ pub struct Plan {
 /// Flags the texels on a sharp change of `irradiance` and places their
 /// sub-samples. `None` when no texel needs them.
 pub fn plan(occluders: &Occluders, texels: &TexelSet, irradiance: &[[f32; 3]]) -> Option<Plan> {
-    let (width, height) = (texels.width as i64, texels.height as i64);
-    // Texels are in row-major atlas order: a neighbour is found by binary
-    // search (a lookup table would take 1 GiB at 16384²).
-    let at = |t: &Texel, dx: i64, dy: i64| -> Option<usize> {
-        let (x, y) = (t.x(texels.width) as i64 + dx, t.y(texels.width) as i64 + dy);
-        if x < 0 || y < 0 || x >= width || y >= height {
-            return None;
-        }
-        texels.texels.binary_search_by_key(&((x + y * width) as u32), |n| n.index).ok()
-    };
-    let level: Vec<f64> = irradiance.iter().map(|&e| luminance(e)).collect();
-    let peak = level.iter().cloned().fold(0.0f64, f64::max);
-    if peak <= 0.0 {
-        return None;
-    }
-    // Bent, not sloped: a texel's mean over its square is its centre's value
-    // wherever the light changes linearly across it (a penumbra several
-    // texels wide), so only a kink or a step (second difference) needs
-    // sub-samples.
-    let flagged: Vec<usize> = (0..texels.texels.len())
-        .into_par_iter()
-        .filter(|&i| {
-            let t = &texels.texels[i];
-            t.area > 0.0
-                && [(1, 0), (0, 1)].iter().any(|&(dx, dy)| {
-                    let (Some(before), Some(after)) = (at(t, -dx, -dy), at(t, dx, dy)) else {
-                        return false;
-                    };
-                    let (a, b, c) = (level[before], level[i], level[after]);
-                    let top = a.max(b).max(c);
-                    // Far below the brightest texel, a difference is invisible.
-                    top > 1e-6 * peak && (a - 2.0 * b + c).abs() > EDGE_CONTRAST * top
-                })
-        })
-        .collect();
+    let atlas = Atlas { texels };
+    let flagged = flag(&atlas, irradiance);
     if flagged.is_empty() {
         return None;
     }
     // Each flagged texel's sub-samples, in texel order (rayon keeps it).
-    let per_texel: Vec<Vec<Texel>> = flagged
-        .par_iter()
-        .map(|&i| {
-            let t = &texels.texels[i];
-            // Inside its chart: all eight neighbours are its surface.
-            let mut around = [[0usize; 3]; 3];
-            let inside = (-1..=1i64).all(|dy| {
-                (-1..=1i64).all(|dx| {
-                    at(t, dx, dy).is_some_and(|j| {
-                        let n = &texels.texels[j];
-                        around[(dy + 1) as usize][(dx + 1) as usize] = j;
-                        n.chart == t.chart && n.area > 0.0 && n.normal().dot(t.normal()) >= SAME_SURFACE_COS
-                    })
-                })
-            });
-            if !inside {
-                return Vec::new();
-            }
-            let p = |j: usize| texels.texels[j].position();
-            let du = (p(around[1][2]) - p(around[1][0])) * 0.5;
-            let dv = (p(around[2][1]) - p(around[0][1])) * 0.5;
-            let lift = DVec3::from(Vec3::from(t.face_normal)) * LIFT_TEXELS * du.length().min(dv.length()) as f64;
-            let centre = t.position().as_dvec3() + lift;
-            // A texel whose lift crosses another surface touches it (a
-            // ring's underside on the floor): its flat footprint would dip
-            // behind that surface where its own surface curves away, and
-            // the centre, lifted, is behind it already. It keeps its centre.
-            if occluders.blocks(t.position().as_dvec3() + lift * 1e-3, centre) {
-                return Vec::new();
-            }
-            PATTERN
-                .iter()
-                .enumerate()
-                .filter_map(|(k, [ox, oy])| {
-                    let position = t.position() + du * (ox / 16.0) + dv * (oy / 16.0);
-                    (!occluders.blocks(centre, position.as_dvec3() + lift)).then(|| Texel {
-                        position: position.to_array(),
-                        // A different filter turn per sub-sample (the direct pass turns its taps by index).
-                        index: t.index.wrapping_mul(PATTERN.len() as u32).wrapping_add(k as u32),
-                        ..*t
-                    })
-                })
-                .collect()
-        })
-        .collect();
+    let per_texel: Vec<Vec<Texel>> = flagged.par_iter().map(|&i| sub_samples(occluders, &atlas, i)).collect();
     let mut samples = Vec::new();
     let mut owner = Vec::new();
     let mut count = 0;
@@ -153,6 +76,102 @@ pub fn plan(occluders: &Occluders, texels: &TexelSet, irradiance: &[[f32; 3]]) -
         owner,
         texels: count,
     })
+}
+
+/// The texels laid out on their atlas page, to find a texel's neighbours.
+struct Atlas<'a> {
+    texels: &'a TexelSet,
+}
+
+impl Atlas<'_> {
+    /// The index of the texel `dx`, `dy` from `t`, if one is there. Texels
+    /// are in row-major atlas order: a neighbour is found by binary search
+    /// (a lookup table would take 1 GiB at 16384²).
+    fn at(&self, t: &Texel, dx: i64, dy: i64) -> Option<usize> {
+        let texels = self.texels;
+        let (width, height) = (texels.width as i64, texels.height as i64);
+        let (x, y) = (t.x(texels.width) as i64 + dx, t.y(texels.width) as i64 + dy);
+        if x < 0 || y < 0 || x >= width || y >= height {
+            return None;
+        }
+        texels.texels.binary_search_by_key(&((x + y * width) as u32), |n| n.index).ok()
+    }
+}
+
+/// The texels whose `irradiance` bends sharply across them, in order.
+fn flag(atlas: &Atlas, irradiance: &[[f32; 3]]) -> Vec<usize> {
+    let texels = atlas.texels;
+    let level: Vec<f64> = irradiance.iter().map(|&e| luminance(e)).collect();
+    let peak = level.iter().cloned().fold(0.0f64, f64::max);
+    if peak <= 0.0 {
+        return Vec::new();
+    }
+    // Bent, not sloped: a texel's mean over its square is its centre's value
+    // wherever the light changes linearly across it (a penumbra several
+    // texels wide), so only a kink or a step (second difference) needs
+    // sub-samples.
+    (0..texels.texels.len())
+        .into_par_iter()
+        .filter(|&i| {
+            let t = &texels.texels[i];
+            t.area > 0.0
+                && [(1, 0), (0, 1)].iter().any(|&(dx, dy)| {
+                    let (Some(before), Some(after)) = (atlas.at(t, -dx, -dy), atlas.at(t, dx, dy)) else {
+                        return false;
+                    };
+                    let (a, b, c) = (level[before], level[i], level[after]);
+                    let top = a.max(b).max(c);
+                    // Far below the brightest texel, a difference is invisible.
+                    top > 1e-6 * peak && (a - 2.0 * b + c).abs() > EDGE_CONTRAST * top
+                })
+        })
+        .collect()
+}
+
+/// Flagged texel `i`'s sub-samples that its centre reaches along the
+/// surface; none where it is not inside its chart or touches another surface.
+fn sub_samples(occluders: &Occluders, atlas: &Atlas, i: usize) -> Vec<Texel> {
+    let texels = atlas.texels;
+    let t = &texels.texels[i];
+    // Inside its chart: all eight neighbours are its surface.
+    let mut around = [[0usize; 3]; 3];
+    let inside = (-1..=1i64).all(|dy| {
+        (-1..=1i64).all(|dx| {
+            atlas.at(t, dx, dy).is_some_and(|j| {
+                let n = &texels.texels[j];
+                around[(dy + 1) as usize][(dx + 1) as usize] = j;
+                n.chart == t.chart && n.area > 0.0 && n.normal().dot(t.normal()) >= SAME_SURFACE_COS
+            })
+        })
+    });
+    if !inside {
+        return Vec::new();
+    }
+    let p = |j: usize| texels.texels[j].position();
+    let du = (p(around[1][2]) - p(around[1][0])) * 0.5;
+    let dv = (p(around[2][1]) - p(around[0][1])) * 0.5;
+    let lift = DVec3::from(Vec3::from(t.face_normal)) * LIFT_TEXELS * du.length().min(dv.length()) as f64;
+    let centre = t.position().as_dvec3() + lift;
+    // A texel whose lift crosses another surface touches it (a
+    // ring's underside on the floor): its flat footprint would dip
+    // behind that surface where its own surface curves away, and
+    // the centre, lifted, is behind it already. It keeps its centre.
+    if occluders.blocks(t.position().as_dvec3() + lift * 1e-3, centre) {
+        return Vec::new();
+    }
+    PATTERN
+        .iter()
+        .enumerate()
+        .filter_map(|(k, [ox, oy])| {
+            let position = t.position() + du * (ox / 16.0) + dv * (oy / 16.0);
+            (!occluders.blocks(centre, position.as_dvec3() + lift)).then(|| Texel {
+                position: position.to_array(),
+                // A different filter turn per sub-sample (the direct pass turns its taps by index).
+                index: t.index.wrapping_mul(PATTERN.len() as u32).wrapping_add(k as u32),
+                ..*t
+            })
+        })
+        .collect()
 }
 
 /// Replaces each flagged texel's irradiance with the mean of its
