@@ -812,30 +812,59 @@ pub fn three_statues(frequency: u32) -> SceneBuilder {
 /// - node 8 `camera` with camera 0; extras on the root, scene, mesh, material, accessor, camera,
 ///   animation and skin; two images, one in a buffer view and one as a data URI.
 pub fn everything() -> Vec<u8> {
-    use base64::Engine as _;
-    const FLOAT: u32 = 5126;
-    const UNSIGNED_BYTE: u32 = 5121;
     let mut scene = SceneBuilder::new();
     let checker = checker_png([200, 160, 90], [90, 60, 40]);
     let dots = checker_png([255, 255, 255], [170, 170, 170]);
     let checker_view = scene.push_view(&checker, None);
+    // The steps below append to the binary buffer in turn; their order fixes the file's bytes.
+    let materials = EverythingMaterials::add(&mut scene);
+    let ground = everything_ground(&mut scene, &materials);
+    let crate_mesh = everything_crate(&mut scene, &materials);
+    let flag = everything_flag(&mut scene, &materials);
+    let orb = scene.mesh("orb", &MeshData::sphere(0.4, 12, 6), Some(materials.orb));
+    let spinner = everything_nodes(&mut scene, ground, crate_mesh, flag, orb);
+    let motion = EverythingMotion::add(&mut scene);
+    let doc = everything_document(&scene, checker_view, &dots, spinner, &motion);
+    let json = serde_json::to_vec(&doc).expect("fixture JSON serializes");
+    crate::export::glb::encode(&json, &scene.binary)
+}
 
-    let ground_material = scene.material("ground", [0.8, 0.8, 0.8, 1.0], [0.0; 3]);
-    let crate_material = scene.material("crate", [0.7, 0.5, 0.3, 1.0], [0.0; 3]);
-    let orb_material = scene.material("orb", [0.9, 0.2, 0.2, 1.0], [0.0; 3]);
-    let points_material = scene.material("markers", [1.0, 1.0, 0.0, 1.0], [0.0; 3]);
-    scene.materials[ground_material]["pbrMetallicRoughness"]["baseColorTexture"] = json!({
-        "index": 0, "extensions": { "KHR_texture_transform": { "offset": [0.0, 0.0], "scale": [4.0, 4.0] } },
-    });
-    scene.materials[ground_material]["extras"] = json!({ "surface": "concrete" });
-    scene.materials[crate_material]["pbrMetallicRoughness"]["baseColorTexture"] = json!({ "index": 0 });
-    scene.materials[crate_material]["occlusionTexture"] = json!({ "index": 1, "texCoord": 1, "strength": 0.8 });
-    scene.materials[crate_material]["extensions"] = json!({ "ACME_marker": { "kind": "material" } });
-    scene.materials[orb_material]["doubleSided"] = json!(true);
+/// glTF component types the [`everything`] fixture writes raw.
+const FLOAT: u32 = 5126;
+const UNSIGNED_BYTE: u32 = 5121;
 
-    // Mesh 0: the ground, with extra attributes, and a points primitive.
+/// The [`everything`] fixture's materials, by index.
+struct EverythingMaterials {
+    ground: usize,
+    crate_: usize,
+    orb: usize,
+    markers: usize,
+}
+
+impl EverythingMaterials {
+    /// Adds the four materials: a transformed base-colour texture, an occlusion map read
+    /// through TEXCOORD_1, a double-sided one, and one for the points primitive.
+    fn add(scene: &mut SceneBuilder) -> Self {
+        let ground = scene.material("ground", [0.8, 0.8, 0.8, 1.0], [0.0; 3]);
+        let crate_ = scene.material("crate", [0.7, 0.5, 0.3, 1.0], [0.0; 3]);
+        let orb = scene.material("orb", [0.9, 0.2, 0.2, 1.0], [0.0; 3]);
+        let markers = scene.material("markers", [1.0, 1.0, 0.0, 1.0], [0.0; 3]);
+        scene.materials[ground]["pbrMetallicRoughness"]["baseColorTexture"] = json!({
+            "index": 0, "extensions": { "KHR_texture_transform": { "offset": [0.0, 0.0], "scale": [4.0, 4.0] } },
+        });
+        scene.materials[ground]["extras"] = json!({ "surface": "concrete" });
+        scene.materials[crate_]["pbrMetallicRoughness"]["baseColorTexture"] = json!({ "index": 0 });
+        scene.materials[crate_]["occlusionTexture"] = json!({ "index": 1, "texCoord": 1, "strength": 0.8 });
+        scene.materials[crate_]["extensions"] = json!({ "ACME_marker": { "kind": "material" } });
+        scene.materials[orb]["doubleSided"] = json!(true);
+        Self { ground, crate_, orb, markers }
+    }
+}
+
+/// Mesh 0: the ground, with extra attributes, and a points primitive.
+fn everything_ground(scene: &mut SceneBuilder, materials: &EverythingMaterials) -> usize {
     let plane = MeshData::plane(6.0, 6.0, 2);
-    let ground = scene.mesh("ground", &plane, Some(ground_material));
+    let ground = scene.mesh("ground", &plane, Some(materials.ground));
     let tangents = vec![[1.0f32, 0.0, 0.0, 1.0]; plane.positions.len()];
     let colours: Vec<u8> = (0..plane.positions.len()).flat_map(|i| [255, (i * 20) as u8, 128, 255]).collect();
     let uv1 = plane.uv0.clone();
@@ -857,21 +886,27 @@ pub fn everything() -> Vec<u8> {
             "COLOR_0": scene.push_raw(&mark_colours, UNSIGNED_BYTE, 4, "VEC4", true),
         },
         "mode": 0,
-        "material": points_material,
+        "material": materials.markers,
     });
     scene.meshes[ground]["primitives"].as_array_mut().unwrap().push(points);
+    ground
+}
 
-    // Mesh 1: a crate with a second UV set its occlusion map reads.
+/// Mesh 1: a crate with a second UV set its occlusion map reads.
+fn everything_crate(scene: &mut SceneBuilder, materials: &EverythingMaterials) -> usize {
     let cuboid = MeshData::cuboid([0.6, 0.6, 0.6]);
-    let crate_mesh = scene.mesh("crate", &cuboid, Some(crate_material));
+    let crate_mesh = scene.mesh("crate", &cuboid, Some(materials.crate_));
     let uv1: Vec<[f32; 2]> = cuboid.uv0.iter().map(|uv| [0.25 + 0.5 * uv[0], 0.25 + 0.5 * uv[1]]).collect();
     scene.meshes[crate_mesh]["primitives"][0]["attributes"]["TEXCOORD_1"] =
         json!(scene.push_floats(&uv1, "VEC2", false));
     scene.meshes[crate_mesh]["extras"] = json!({ "stackable": true });
+    crate_mesh
+}
 
-    // Mesh 2: a flag, skinned to two joints, with the crate's material.
+/// Mesh 2: a flag, skinned to two joints, with the crate's material.
+fn everything_flag(scene: &mut SceneBuilder, materials: &EverythingMaterials) -> usize {
     let cloth = MeshData::plane(1.0, 1.0, 2);
-    let flag = scene.mesh("flag", &cloth, Some(crate_material));
+    let flag = scene.mesh("flag", &cloth, Some(materials.crate_));
     let joints: Vec<u8> = cloth.positions.iter().flat_map(|_| [0, 1, 0, 0]).collect();
     let weights: Vec<[f32; 4]> =
         cloth.uv0.iter().map(|uv| [0.25 + 0.5 * uv[1], 0.75 - 0.5 * uv[1], 0.0, 0.0]).collect();
@@ -883,11 +918,11 @@ pub fn everything() -> Vec<u8> {
     for (name, accessor) in attributes {
         scene.meshes[flag]["primitives"][0]["attributes"][name] = json!(accessor);
     }
+    flag
+}
 
-    // Mesh 3: an orb.
-    let orb = scene.mesh("orb", &MeshData::sphere(0.4, 12, 6), Some(orb_material));
-
-    // Nodes, in the order the output must keep.
+/// Nodes, in the order the output must keep; gives the spinner's index.
+fn everything_nodes(scene: &mut SceneBuilder, ground: usize, crate_mesh: usize, flag: usize, orb: usize) -> usize {
     let ground_node = scene.node("ground", ground, Placement::default());
     scene.nodes[ground_node]["extras"] = json!({ "layer": "static" });
     scene.nodes[ground_node]["extensions"] = json!({ "ACME_marker": { "kind": "node" } });
@@ -901,25 +936,51 @@ pub fn everything() -> Vec<u8> {
     scene.nodes.push(json!({ "name": "flag tip joint", "translation": [0.0, 1.0, 0.0] }));
     let spinner = scene.node("spinner", orb, Placement::at(Vec3::new(0.0, 1.0, 1.5)));
     scene.nodes.push(json!({ "name": "camera", "camera": 0, "translation": [0.0, 2.0, 8.0] }));
+    spinner
+}
 
-    // Skin: inverse bind matrices (column-major) undo each joint's world translation.
-    let inverse_bind: Vec<[f32; 16]> = [[2.0f32, 0.0, 0.0], [2.0, -1.0, 0.0]]
-        .iter()
-        .map(|t| [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, t[0], t[1], t[2], 1.0])
-        .collect();
-    let inverse_bind = scene.push_raw(bytemuck::cast_slice(&inverse_bind), FLOAT, 2, "MAT4", false);
+/// The [`everything`] fixture's skin and animation accessors.
+struct EverythingMotion {
+    inverse_bind: usize,
+    times: usize,
+    spin: usize,
+    bend: usize,
+}
 
-    // Animations: the orb turns about +Y; the flag's tip joint bends about +X.
-    let times = scene.push_floats(&[[0.0f32], [1.0], [2.0]], "SCALAR", true);
-    let h = std::f32::consts::FRAC_1_SQRT_2;
-    let spin = scene.push_floats(&[[0.0f32, 0.0, 0.0, 1.0], [0.0, h, 0.0, h], [0.0, 1.0, 0.0, 0.0]], "VEC4", false);
-    let bend = scene.push_floats(&[[0.0f32, 0.0, 0.0, 1.0], [h, 0.0, 0.0, h], [0.0, 0.0, 0.0, 1.0]], "VEC4", false);
-    for accessor in [times, spin, bend, inverse_bind] {
-        // Animation and skin data must not sit in vertex buffer views.
-        let view = scene.accessors[accessor]["bufferView"].as_u64().unwrap() as usize;
-        scene.buffer_views[view].as_object_mut().unwrap().remove("target");
+impl EverythingMotion {
+    fn add(scene: &mut SceneBuilder) -> Self {
+        // Skin: inverse bind matrices (column-major) undo each joint's world translation.
+        let inverse_bind: Vec<[f32; 16]> = [[2.0f32, 0.0, 0.0], [2.0, -1.0, 0.0]]
+            .iter()
+            .map(|t| [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, t[0], t[1], t[2], 1.0])
+            .collect();
+        let inverse_bind = scene.push_raw(bytemuck::cast_slice(&inverse_bind), FLOAT, 2, "MAT4", false);
+
+        // Animations: the orb turns about +Y; the flag's tip joint bends about +X.
+        let times = scene.push_floats(&[[0.0f32], [1.0], [2.0]], "SCALAR", true);
+        let h = std::f32::consts::FRAC_1_SQRT_2;
+        let spin = scene.push_floats(&[[0.0f32, 0.0, 0.0, 1.0], [0.0, h, 0.0, h], [0.0, 1.0, 0.0, 0.0]], "VEC4", false);
+        let bend = scene.push_floats(&[[0.0f32, 0.0, 0.0, 1.0], [h, 0.0, 0.0, h], [0.0, 0.0, 0.0, 1.0]], "VEC4", false);
+        for accessor in [times, spin, bend, inverse_bind] {
+            // Animation and skin data must not sit in vertex buffer views.
+            let view = scene.accessors[accessor]["bufferView"].as_u64().unwrap() as usize;
+            scene.buffer_views[view].as_object_mut().unwrap().remove("target");
+        }
+        Self { inverse_bind, times, spin, bend }
     }
+}
 
+/// The glTF document around the [`everything`] fixture's meshes and nodes: its scene, skin,
+/// animations, camera, images, extensions and extras.
+fn everything_document(
+    scene: &SceneBuilder,
+    checker_view: usize,
+    dots: &[u8],
+    spinner: usize,
+    motion: &EverythingMotion,
+) -> Value {
+    use base64::Engine as _;
+    let EverythingMotion { inverse_bind, times, spin, bend } = *motion;
     let mut doc = scene.document();
     doc["scenes"] =
         json!([{ "name": "everything", "nodes": [0, 1, 2, 3, 4, 5, spinner, 8], "extras": { "lit": "sky" } }]);
@@ -935,7 +996,7 @@ pub fn everything() -> Vec<u8> {
         "perspective": { "yfov": 0.8, "znear": 0.1, "zfar": 100.0, "aspectRatio": 1.5 }, "extras": { "rig": "tripod" } }]);
     doc["images"] = json!([
         { "name": "checker", "bufferView": checker_view, "mimeType": "image/png" },
-        { "name": "dots", "uri": format!("data:image/png;base64,{}", base64::engine::general_purpose::STANDARD.encode(&dots)) },
+        { "name": "dots", "uri": format!("data:image/png;base64,{}", base64::engine::general_purpose::STANDARD.encode(dots)) },
     ]);
     doc["samplers"] = json!([{ "magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497 }]);
     doc["textures"] =
@@ -944,8 +1005,7 @@ pub fn everything() -> Vec<u8> {
     doc["extensions"] = json!({ "ACME_marker": { "kind": "root", "version": 1 } });
     doc["extras"] = json!({ "project": "bake fixtures", "revision": 3 });
     doc["asset"]["copyright"] = json!("CC0");
-    let json = serde_json::to_vec(&doc).expect("fixture JSON serializes");
-    crate::export::glb::encode(&json, &scene.binary)
+    doc
 }
 
 impl SceneBuilder {

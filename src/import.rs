@@ -76,63 +76,9 @@ pub fn from_asset_with(source: SourceAsset, options: &ImportOptions) -> Result<S
     // Per material, the notice that leaves its primitives out (`see_through`).
     let left_out: Vec<Option<String>> =
         materials.iter().enumerate().map(|(m, parsed)| see_through(&source.json, m, parsed)).collect();
-    let mut gathered = Vec::new();
-    // Punctual lights, positioned in world coordinates until the origin is known.
-    let mut lights = Vec::new();
     let animated = morph::animated_nodes(&source.json);
-    // Animated nodes with baked geometry at or below them (the nearest such node).
-    let mut moved = std::collections::BTreeSet::new();
-    // Each node with its parent's world transform and its nearest animated ancestor.
-    let mut stack: Vec<(gltf::Node, DMat4, Option<usize>)> =
-        gltf_scene.nodes().map(|n| (n, DMat4::IDENTITY, None)).collect();
-    stack.reverse();
-    let mut visits = 0usize;
-    while let Some((node, parent, animated_above)) = stack.pop() {
-        visits += 1;
-        if visits > document.nodes().len() * 4 + 16 {
-            bail!("the node hierarchy has a cycle");
-        }
-        let local = node.transform().matrix().map(|column| column.map(f64::from));
-        let world = parent * DMat4::from_cols_array_2d(&local);
-        let animated_above = Some(node.index()).filter(|n| animated.contains_key(n)).or(animated_above);
-        let baked_here = node.mesh().is_some() && node.skin().is_none() || node.light().is_some();
-        if let (true, Some(animated)) = (baked_here, animated_above) {
-            moved.insert(animated);
-        }
-        if let Some(light) = node.light() {
-            lights.extend(punctual_light(&node, &light, world, &mut notices)?);
-        }
-        if let Some(mesh) = node.mesh() {
-            match instancing::read(&source, node.index())? {
-                None => collect_mesh(&source, &left_out, &node, None, world, &mut gathered, &mut notices)?,
-                Some(instances) => {
-                    notices.push(format!(
-                        "{} is drawn as {} GPU instances ({}): each is baked with its own lightmap region and \
-                         written as a child node of its own, since instances share one set of UVs",
-                        describe(&node, &mesh, None),
-                        instances.placements.len(),
-                        instancing::EXTENSION
-                    ));
-                    for (k, placement) in instances.placements.iter().enumerate() {
-                        let world = world * placement.matrix();
-                        collect_mesh(&source, &left_out, &node, Some(k), world, &mut gathered, &mut notices)?;
-                    }
-                }
-            }
-        }
-        for child in node.children().collect::<Vec<_>>().into_iter().rev() {
-            stack.push((child, world, animated_above));
-        }
-    }
-    for node in moved {
-        let name = document.nodes().nth(node).and_then(|n| n.name()).map(|n| format!(" '{n}'")).unwrap_or_default();
-        let properties: Vec<&str> = animated[&node].iter().map(String::as_str).collect();
-        notices.push(format!(
-            "node {node}{name} is animated ({}): it and the nodes below it are baked in their rest pose, so their \
-             lightmaps, and the light and shadow they cast on the rest, hold in that pose only",
-            properties.join(", ")
-        ));
-    }
+    let Walked { gathered, mut lights, moved } = walk_nodes(&source, &gltf_scene, &left_out, &animated, &mut notices)?;
+    notices.extend(rest_pose_notices(document, &animated, moved));
     if gathered.is_empty() {
         bail!("the scene has no triangle geometry to bake");
     }
@@ -155,6 +101,104 @@ pub fn from_asset_with(source: SourceAsset, options: &ImportOptions) -> Result<S
     notices.extend(image_notices);
     let name = source.path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "scene".into());
     Ok(Scene { name, source, origin, primitives, materials, images, lights, notices })
+}
+
+/// Animated glTF nodes by index, with the properties their channels move.
+type Animated = std::collections::BTreeMap<usize, std::collections::BTreeSet<String>>;
+
+/// What walking the scene's node tree finds.
+struct Walked {
+    gathered: Vec<Gathered>,
+    /// Punctual lights, positioned in world coordinates until the origin is known.
+    lights: Vec<PunctualLight>,
+    /// Animated nodes with baked geometry at or below them (the nearest such node).
+    moved: std::collections::BTreeSet<usize>,
+}
+
+/// Walks `gltf_scene`'s nodes depth first, in document order, composing transforms and
+/// gathering their meshes' primitives and their lights.
+fn walk_nodes(
+    source: &SourceAsset,
+    gltf_scene: &gltf::Scene,
+    left_out: &[Option<String>],
+    animated: &Animated,
+    notices: &mut Vec<String>,
+) -> Result<Walked> {
+    let mut walked = Walked { gathered: Vec::new(), lights: Vec::new(), moved: Default::default() };
+    // Each node with its parent's world transform and its nearest animated ancestor.
+    let mut stack: Vec<(gltf::Node, DMat4, Option<usize>)> =
+        gltf_scene.nodes().map(|n| (n, DMat4::IDENTITY, None)).collect();
+    stack.reverse();
+    let mut visits = 0usize;
+    while let Some((node, parent, animated_above)) = stack.pop() {
+        visits += 1;
+        if visits > source.document.nodes().len() * 4 + 16 {
+            bail!("the node hierarchy has a cycle");
+        }
+        let local = node.transform().matrix().map(|column| column.map(f64::from));
+        let world = parent * DMat4::from_cols_array_2d(&local);
+        let animated_above = Some(node.index()).filter(|n| animated.contains_key(n)).or(animated_above);
+        let baked_here = node.mesh().is_some() && node.skin().is_none() || node.light().is_some();
+        if let (true, Some(animated)) = (baked_here, animated_above) {
+            walked.moved.insert(animated);
+        }
+        if let Some(light) = node.light() {
+            walked.lights.extend(punctual_light(&node, &light, world, notices)?);
+        }
+        collect_instances(source, left_out, &node, world, &mut walked.gathered, notices)?;
+        for child in node.children().collect::<Vec<_>>().into_iter().rev() {
+            stack.push((child, world, animated_above));
+        }
+    }
+    Ok(walked)
+}
+
+/// Gathers `node`'s mesh (if any) once, or once per GPU instance (EXT_mesh_gpu_instancing).
+fn collect_instances(
+    source: &SourceAsset,
+    left_out: &[Option<String>],
+    node: &gltf::Node,
+    world: DMat4,
+    gathered: &mut Vec<Gathered>,
+    notices: &mut Vec<String>,
+) -> Result<()> {
+    let Some(mesh) = node.mesh() else { return Ok(()) };
+    match instancing::read(source, node.index())? {
+        None => collect_mesh(source, left_out, node, None, world, gathered, notices)?,
+        Some(instances) => {
+            notices.push(format!(
+                "{} is drawn as {} GPU instances ({}): each is baked with its own lightmap region and \
+                 written as a child node of its own, since instances share one set of UVs",
+                describe(node, &mesh, None),
+                instances.placements.len(),
+                instancing::EXTENSION
+            ));
+            for (k, placement) in instances.placements.iter().enumerate() {
+                let world = world * placement.matrix();
+                collect_mesh(source, left_out, node, Some(k), world, gathered, notices)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// One notice per animated node in `moved`: what is below it is baked in its rest pose.
+fn rest_pose_notices(
+    document: &gltf::Document,
+    animated: &Animated,
+    moved: std::collections::BTreeSet<usize>,
+) -> Vec<String> {
+    let mut notices = Vec::new();
+    for node in moved {
+        let name = document.nodes().nth(node).and_then(|n| n.name()).map(|n| format!(" '{n}'")).unwrap_or_default();
+        let properties: Vec<&str> = animated[&node].iter().map(String::as_str).collect();
+        notices.push(format!(
+            "node {node}{name} is animated ({}): it and the nodes below it are baked in their rest pose, so their \
+             lightmaps, and the light and shadow they cast on the rest, hold in that pose only",
+            properties.join(", ")
+        ));
+    }
+    notices
 }
 
 /// The KHR_lights_punctual light `light` where `node` (of world transform
@@ -392,8 +436,6 @@ fn collect_mesh(
         notices.push(format!("{what} is skinned (not static): left out of the bake"));
         return Ok(());
     }
-    let normal_matrix = DMat3::from_mat4(world).inverse().transpose();
-    let mirrored = DMat3::from_mat4(world).determinant() < 0.0;
     let weights = morph::weights(node, mesh).with_context(|| what.clone())?;
     // One notice for a node's instances: they all draw its weights.
     if !weights.is_empty() && instance.unwrap_or(0) == 0 {
@@ -403,6 +445,7 @@ fn collect_mesh(
             weights.len()
         ));
     }
+    let placed = PlacedMesh { source, node, mesh, instance, world, weights };
     for primitive in mesh.primitives() {
         let what = format!("{what}, primitive {}", primitive.index());
         let mode = primitive.mode();
@@ -423,81 +466,7 @@ fn collect_mesh(
             }
             continue;
         }
-        let read = || -> Result<Gathered> {
-            let morph = |attribute: &str, accessor: &gltf::Accessor, width: usize| -> Result<Vec<f32>> {
-                let found = accessor.dimensions().multiplicity();
-                ensure!(found == width, "{attribute} has {found} components, {width} expected");
-                let mut values = accessor::read_floats(source, accessor).context(attribute.to_string())?;
-                morph::displace(source, mesh.index(), primitive.index(), &weights, attribute, width, &mut values)?;
-                Ok(values)
-            };
-            let local = morph("POSITION", &position_accessor, 3)?;
-            if let Some(i) = local.iter().position(|c| !c.is_finite()) {
-                bail!("POSITION {} is not finite ({:?})", i / 3, &local[i / 3 * 3..i / 3 * 3 + 3]);
-            }
-            let count = local.len() / 3;
-            let world: Vec<DVec3> = local
-                .chunks_exact(3)
-                .map(|p| world.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)))
-                .collect();
-            if let Some(i) = world.iter().position(|p| !p.is_finite()) {
-                bail!("world position of vertex {i} is not finite: the node transform overflows");
-            }
-            let entries = |semantic: gltf::Semantic, attribute: &str, widths: &[usize]| -> Result<_> {
-                let Some(a) = primitive.get(&semantic) else { return Ok(None) };
-                let width = a.dimensions().multiplicity();
-                if !widths.contains(&width) {
-                    bail!("{attribute} has {width} components ({widths:?} expected)");
-                }
-                let values = morph(attribute, &a, width)?;
-                if values.len() != count * width {
-                    bail!("{attribute} has {} entries for {count} positions", values.len() / width);
-                }
-                Ok(Some((values, width)))
-            };
-            let normals = entries(gltf::Semantic::Normals, "NORMAL", &[3])?.map(|(local, _)| {
-                local
-                    .chunks_exact(3)
-                    .map(|n| {
-                        let n = normal_matrix * DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
-                        // Zero, NaN or infinite normals fall back to the face normal later.
-                        n.try_normalize().unwrap_or(DVec3::ZERO).as_vec3().to_array()
-                    })
-                    .collect()
-            });
-            let pairs = |(values, _): (Vec<f32>, usize)| values.chunks_exact(2).map(|c| [c[0], c[1]]).collect();
-            let uv0 = entries(gltf::Semantic::TexCoords(0), "TEXCOORD_0", &[2])?.map(pairs);
-            let uv1 = entries(gltf::Semantic::TexCoords(1), "TEXCOORD_1", &[2])?.map(pairs);
-            let colors = entries(gltf::Semantic::Colors(0), "COLOR_0", &[3, 4])?
-                .map(|(values, width)| values.chunks_exact(width).map(|c| [c[0], c[1], c[2]]).collect());
-            let drawn = match primitive.indices() {
-                Some(a) => accessor::read_indices(source, &a)?,
-                None => (0..count as u32).collect(),
-            };
-            if let Some(&bad) = drawn.iter().find(|&&i| i as usize >= count) {
-                bail!("index {bad} is past the vertex count {count}");
-            }
-            let indices = triangle_list(mode, &drawn);
-            let baked = ScenePrimitive {
-                node: node.index(),
-                instance,
-                mesh: mesh.index(),
-                primitive: primitive.index(),
-                // Filled in by `finish_primitives` once the scene's origin is known.
-                positions: Vec::new(),
-                repeats: Vec::new(),
-                normals,
-                uv0,
-                uv1,
-                colors,
-                indices,
-                mirrored,
-                material,
-                drawn_material: primitive.material().index(),
-            };
-            Ok(Gathered { primitive: baked, world, what: what.clone() })
-        };
-        let read = read().with_context(|| what.clone())?;
+        let read = placed.read(&primitive, &position_accessor, material, &what).with_context(|| what.clone())?;
         if read.primitive.indices.is_empty() {
             notices.push(format!("{what} has no triangles: left out of the bake"));
             continue;
@@ -505,6 +474,128 @@ fn collect_mesh(
         gathered.push(read);
     }
     Ok(())
+}
+
+/// One drawing of a mesh: on `node` (GPU `instance`), at `world`, morphed by `weights`.
+struct PlacedMesh<'a> {
+    source: &'a SourceAsset,
+    node: &'a gltf::Node<'a>,
+    mesh: &'a gltf::Mesh<'a>,
+    instance: Option<usize>,
+    world: DMat4,
+    weights: Vec<f32>,
+}
+
+impl PlacedMesh<'_> {
+    /// Reads one triangle primitive's vertices into world space and its indices into a list.
+    fn read(
+        &self,
+        primitive: &gltf::Primitive,
+        position_accessor: &gltf::Accessor,
+        material: Option<usize>,
+        what: &str,
+    ) -> Result<Gathered> {
+        let local = self.morphed(primitive, "POSITION", position_accessor, 3)?;
+        if let Some(i) = local.iter().position(|c| !c.is_finite()) {
+            bail!("POSITION {} is not finite ({:?})", i / 3, &local[i / 3 * 3..i / 3 * 3 + 3]);
+        }
+        let count = local.len() / 3;
+        let world: Vec<DVec3> = local
+            .chunks_exact(3)
+            .map(|p| self.world.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)))
+            .collect();
+        if let Some(i) = world.iter().position(|p| !p.is_finite()) {
+            bail!("world position of vertex {i} is not finite: the node transform overflows");
+        }
+        let normal_matrix = DMat3::from_mat4(self.world).inverse().transpose();
+        let normals = self.attribute(primitive, gltf::Semantic::Normals, "NORMAL", &[3], count)?.map(|(local, _)| {
+            local
+                .chunks_exact(3)
+                .map(|n| {
+                    let n = normal_matrix * DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
+                    // Zero, NaN or infinite normals fall back to the face normal later.
+                    n.try_normalize().unwrap_or(DVec3::ZERO).as_vec3().to_array()
+                })
+                .collect()
+        });
+        let pairs = |(values, _): (Vec<f32>, usize)| values.chunks_exact(2).map(|c| [c[0], c[1]]).collect();
+        let uv0 = self.attribute(primitive, gltf::Semantic::TexCoords(0), "TEXCOORD_0", &[2], count)?.map(pairs);
+        let uv1 = self.attribute(primitive, gltf::Semantic::TexCoords(1), "TEXCOORD_1", &[2], count)?.map(pairs);
+        let colors = self
+            .attribute(primitive, gltf::Semantic::Colors(0), "COLOR_0", &[3, 4], count)?
+            .map(|(values, width)| values.chunks_exact(width).map(|c| [c[0], c[1], c[2]]).collect());
+        let drawn = match primitive.indices() {
+            Some(a) => accessor::read_indices(self.source, &a)?,
+            None => (0..count as u32).collect(),
+        };
+        if let Some(&bad) = drawn.iter().find(|&&i| i as usize >= count) {
+            bail!("index {bad} is past the vertex count {count}");
+        }
+        let indices = triangle_list(primitive.mode(), &drawn);
+        let baked = ScenePrimitive {
+            node: self.node.index(),
+            instance: self.instance,
+            mesh: self.mesh.index(),
+            primitive: primitive.index(),
+            // Filled in by `finish_primitives` once the scene's origin is known.
+            positions: Vec::new(),
+            repeats: Vec::new(),
+            normals,
+            uv0,
+            uv1,
+            colors,
+            indices,
+            mirrored: DMat3::from_mat4(self.world).determinant() < 0.0,
+            material,
+            drawn_material: primitive.material().index(),
+        };
+        Ok(Gathered { primitive: baked, world, what: what.to_string() })
+    }
+
+    /// An attribute's `width`-component values, displaced by the morph targets at the weights.
+    fn morphed(
+        &self,
+        primitive: &gltf::Primitive,
+        attribute: &str,
+        accessor: &gltf::Accessor,
+        width: usize,
+    ) -> Result<Vec<f32>> {
+        let found = accessor.dimensions().multiplicity();
+        ensure!(found == width, "{attribute} has {found} components, {width} expected");
+        let mut values = accessor::read_floats(self.source, accessor).context(attribute.to_string())?;
+        morph::displace(
+            self.source,
+            self.mesh.index(),
+            primitive.index(),
+            &self.weights,
+            attribute,
+            width,
+            &mut values,
+        )?;
+        Ok(values)
+    }
+
+    /// An optional vertex attribute, morphed, with its width (one of `widths`); one entry
+    /// per each of the `count` positions.
+    fn attribute(
+        &self,
+        primitive: &gltf::Primitive,
+        semantic: gltf::Semantic,
+        attribute: &str,
+        widths: &[usize],
+        count: usize,
+    ) -> Result<Option<(Vec<f32>, usize)>> {
+        let Some(a) = primitive.get(&semantic) else { return Ok(None) };
+        let width = a.dimensions().multiplicity();
+        if !widths.contains(&width) {
+            bail!("{attribute} has {width} components ({widths:?} expected)");
+        }
+        let values = self.morphed(primitive, attribute, &a, width)?;
+        if values.len() != count * width {
+            bail!("{attribute} has {} entries for {count} positions", values.len() / width);
+        }
+        Ok(Some((values, width)))
+    }
 }
 
 /// Below this fraction of light passing, a surface is baked as opaque; at

@@ -195,6 +195,9 @@ pub(crate) fn check_exr_size(file: &File, length: u64) -> Result<(), String> {
     Ok(())
 }
 
+/// One decoded part of a multi-part EXR, with every channel's samples.
+type ExrLayer = exr::image::Layer<exr::image::AnyChannels<FlatSamples>>;
+
 fn read_exr(mut file: File, length: u64, notices: &mut Vec<String>) -> Result<EnvironmentMap, String> {
     check_exr_size(&file, length)?;
     file.seek(SeekFrom::Start(0)).map_err(|e| format!("cannot read file: {e}"))?;
@@ -209,9 +212,26 @@ fn read_exr(mut file: File, length: u64, notices: &mut Vec<String>) -> Result<En
     let display = image.attributes.display_window;
     let chromaticities = image.attributes.chromaticities;
     let mut layers = image.layer_data;
-    let parts = layers.len();
 
-    // Group every part's channels by prefix (everything before the last '.').
+    let groups = channel_groups(&layers);
+    let c = choose_layer(&groups, &layers)?;
+    push_layer_notices(&groups, &layers, &c, notices);
+
+    let layer = &mut layers[c.part];
+    let (w, h) = check_layer(layer, &c)?;
+    let texels = take_texels(layer, c.channels, w * h);
+    let data_pos = layer.attributes.layer_position;
+    drop(layers);
+    let mut map = EnvironmentMap { width: w as u32, height: h as u32, texels };
+    if let Some(ch) = chromaticities.filter(|_| c.grey_from.is_none()) {
+        convert_primaries(&mut map, &ch, notices);
+    }
+    place_in_display_window(map, data_pos, &display, notices)
+}
+
+/// Groups every part's channels by prefix (everything before the last '.'): per part the
+/// unprefixed layer first, then prefixed ones in name order.
+fn channel_groups(layers: &[ExrLayer]) -> Vec<ChannelGroup> {
     let mut groups: Vec<ChannelGroup> = Vec::new();
     for (p, layer) in layers.iter().enumerate() {
         let mut local: Vec<(String, Vec<(String, usize)>)> = Vec::new();
@@ -226,64 +246,66 @@ fn read_exr(mut file: File, length: u64, notices: &mut Vec<String>) -> Result<En
                 None => local.push((prefix, vec![(base, i)])),
             }
         }
-        // The unprefixed layer first, then prefixed ones in name order.
         local.sort_by(|a, b| (!a.0.is_empty(), &a.0).cmp(&(!b.0.is_empty(), &b.0)));
         groups.extend(local.into_iter().map(|(pf, v)| (p, pf, v)));
     }
-    let find = |chs: &[(String, usize)], names: &[&str]| {
-        names.iter().find_map(|n| {
-            chs.iter()
-                .find(|(b, _)| b == n)
-                .or_else(|| chs.iter().find(|(b, _)| b.eq_ignore_ascii_case(n)))
-                .map(|&(_, i)| i)
+    groups
+}
+
+/// The index of the first of `names` present among `chs`, matched exactly before ignoring case.
+fn find_channel(chs: &[(String, usize)], names: &[&str]) -> Option<usize> {
+    names.iter().find_map(|n| {
+        chs.iter()
+            .find(|(b, _)| b == n)
+            .or_else(|| chs.iter().find(|(b, _)| b.eq_ignore_ascii_case(n)))
+            .map(|&(_, i)| i)
+    })
+}
+
+fn is_colour(base: &str) -> bool {
+    !matches!(base.to_ascii_uppercase().as_str(), "A" | "ALPHA")
+}
+
+/// Picks the layer to read: the first with R, G, B; else the first with a luminance
+/// channel Y (or L); else the first with exactly one (non-alpha) channel, read as grey.
+fn choose_layer(groups: &[ChannelGroup], layers: &[ExrLayer]) -> Result<Candidate, String> {
+    let rgb = groups.iter().find_map(|(p, pf, chs)| {
+        let r = find_channel(chs, &["R", "red"])?;
+        let g = find_channel(chs, &["G", "green"])?;
+        let b = find_channel(chs, &["B", "blue"])?;
+        Some(Candidate { part: *p, prefix: pf.clone(), channels: [r, g, b], grey_from: None })
+    });
+    let luminance = || {
+        groups.iter().find_map(|(p, pf, chs)| {
+            let y = find_channel(chs, &["Y", "L"])?;
+            let name = chs.iter().find(|c| c.1 == y).unwrap().0.clone();
+            Some(Candidate { part: *p, prefix: pf.clone(), channels: [y; 3], grey_from: Some(name) })
         })
     };
-    let is_colour = |b: &str| !matches!(b.to_ascii_uppercase().as_str(), "A" | "ALPHA");
-    let mut chosen: Option<Candidate> = None;
-    // 1. the first layer with R, G, B
-    for (p, pf, chs) in &groups {
-        if let (Some(r), Some(g), Some(b)) =
-            (find(chs, &["R", "red"]), find(chs, &["G", "green"]), find(chs, &["B", "blue"]))
-        {
-            chosen = Some(Candidate { part: *p, prefix: pf.clone(), channels: [r, g, b], grey_from: None });
-            break;
-        }
-    }
-    // 2. else the first layer with a luminance channel Y (or L)
-    if chosen.is_none() {
-        for (p, pf, chs) in &groups {
-            if let Some(y) = find(chs, &["Y", "L"]) {
-                let name = chs.iter().find(|c| c.1 == y).unwrap().0.clone();
-                chosen = Some(Candidate { part: *p, prefix: pf.clone(), channels: [y; 3], grey_from: Some(name) });
-                break;
-            }
-        }
-    }
-    // 3. else the first layer with exactly one (non-alpha) channel
-    if chosen.is_none() {
-        for (p, pf, chs) in &groups {
-            if chs.len() == 1 && is_colour(&chs[0].0) {
-                chosen = Some(Candidate {
-                    part: *p,
-                    prefix: pf.clone(),
-                    channels: [chs[0].1; 3],
-                    grey_from: Some(chs[0].0.clone()),
-                });
-                break;
-            }
-        }
-    }
-    let Some(c) = chosen else {
+    let single = || {
+        groups.iter().find(|(_, _, chs)| chs.len() == 1 && is_colour(&chs[0].0)).map(|(p, pf, chs)| Candidate {
+            part: *p,
+            prefix: pf.clone(),
+            channels: [chs[0].1; 3],
+            grey_from: Some(chs[0].0.clone()),
+        })
+    };
+    rgb.or_else(luminance).or_else(single).ok_or_else(|| {
         let mut names: Vec<String> =
             layers.iter().flat_map(|l| l.channel_data.list.iter().map(|c| c.name.to_string())).collect();
         names.truncate(12);
-        return Err(format!(
+        format!(
             "no colour channels: found {} but need R, G, B (optionally with a layer prefix) \
              or a single luminance channel",
             if names.is_empty() { "no channels".to_string() } else { format!("channels {}", names.join(", ")) }
-        ));
-    };
+        )
+    })
+}
 
+/// Tells which layer is read when there is a choice (or it is not the default one), and
+/// when a single channel stands in for colour.
+fn push_layer_notices(groups: &[ChannelGroup], layers: &[ExrLayer], c: &Candidate, notices: &mut Vec<String>) {
+    let parts = layers.len();
     let part_name = layers[c.part].attributes.layer_name.as_ref().map(|t| t.to_string());
     let label = layer_label(part_name.as_deref(), &c.prefix, parts);
     if groups.len() > 1 {
@@ -303,8 +325,10 @@ fn read_exr(mut file: File, length: u64, notices: &mut Vec<String>) -> Result<En
     if let Some(name) = &c.grey_from {
         notices.push(format!("the EXR has no R, G, B channels; reading channel '{name}' of {label} as grey"));
     }
+}
 
-    let layer = &mut layers[c.part];
+/// Refuses cube maps, sizes that overflow and subsampled channels; gives the layer's size.
+fn check_layer(layer: &ExrLayer, c: &Candidate) -> Result<(usize, usize), String> {
     let (w, h) = (layer.size.x(), layer.size.y());
     if layer.attributes.environment_map == Some(exr::meta::attribute::EnvironmentMap::Cube) {
         return Err(format!(
@@ -327,10 +351,15 @@ fn read_exr(mut file: File, length: u64, notices: &mut Vec<String>) -> Result<En
             ));
         }
     }
+    Ok((w, h))
+}
+
+/// Converts the chosen channels to RGB f32 texels. Each channel is moved out and converted
+/// in turn, so the decoded copy is freed channel by channel.
+fn take_texels(layer: &mut ExrLayer, channels: [usize; 3], n: usize) -> Vec<[f32; 3]> {
     let mut texels = vec![[0.0f32; 3]; n];
-    // Move each channel out and convert it, so the decoded copy is freed channel by channel.
     let mut done: Vec<usize> = Vec::new();
-    for (slot, &i) in c.channels.iter().enumerate() {
+    for (slot, &i) in channels.iter().enumerate() {
         if done.contains(&i) {
             let src = done.iter().position(|&d| d == i).unwrap();
             for t in &mut texels {
@@ -359,13 +388,7 @@ fn read_exr(mut file: File, length: u64, notices: &mut Vec<String>) -> Result<En
         }
         done.push(i);
     }
-    let data_pos = layer.attributes.layer_position;
-    drop(layers);
-    let mut map = EnvironmentMap { width: w as u32, height: h as u32, texels };
-    if let Some(ch) = chromaticities.filter(|_| c.grey_from.is_none()) {
-        convert_primaries(&mut map, &ch, notices);
-    }
-    place_in_display_window(map, data_pos, &display, notices)
+    texels
 }
 
 fn is_equirect_size(w: usize, h: usize) -> bool {
@@ -512,8 +535,41 @@ fn sanitise(
     options: &EnvLoadOptions,
     mut notices: Vec<String>,
 ) -> Result<LoadedEnvironment, String> {
+    replace_nonfinite(&mut map, options, &mut notices)?;
+    let (neg_count, removed) = clamp_negative(&mut map);
+    let integral = map.integral();
+    if neg_count > 0 {
+        let rel: Vec<String> = ["R", "G", "B"]
+            .iter()
+            .enumerate()
+            .map(|(c, name)| {
+                if integral[c] > 0.0 {
+                    format!("{name} {:.2e}", removed[c] / integral[c])
+                } else {
+                    format!("{name} {:.2e} (absolute)", removed[c])
+                }
+            })
+            .collect();
+        notices.push(format!(
+            "clamped {neg_count} negative texel values to zero (lossy EXR codecs leave small \
+             ones); energy removed relative to the map's integral: {}",
+            rel.join(", ")
+        ));
+    }
+    if integral.iter().all(|&v| v == 0.0) {
+        notices.push("warning: the environment is black (its integral is zero)".into());
+    }
+    Ok(LoadedEnvironment { map, notices })
+}
+
+/// Non-finite values: an error unless clamping is enabled, then NaN and -inf become 0 and
+/// +inf the largest finite value, with a warning that says where.
+fn replace_nonfinite(
+    map: &mut EnvironmentMap,
+    options: &EnvLoadOptions,
+    notices: &mut Vec<String>,
+) -> Result<(), String> {
     let w = map.width as usize;
-    // Non-finite values.
     let mut nan = 0usize;
     let mut pos_inf = 0usize;
     let mut neg_inf = 0usize;
@@ -570,8 +626,13 @@ fn sanitise(
              {at}{more}): NaN and -inf by 0, +inf by the largest finite value {max_finite}"
         ));
     }
+    Ok(())
+}
 
-    // Negative values.
+/// Clamps negative channel values to 0 (and −0 to +0); gives how many there were and the
+/// energy removed per channel (value × solid angle).
+fn clamp_negative(map: &mut EnvironmentMap) -> (usize, [f64; 3]) {
+    let w = map.width as usize;
     let mut neg_count = 0usize;
     let mut removed = [0.0f64; 3];
     let omegas: Vec<f64> = (0..map.height).map(|r| map.row_solid_angle(r)).collect();
@@ -595,27 +656,5 @@ fn sanitise(
             }
         }
     }
-    let integral = map.integral();
-    if neg_count > 0 {
-        let rel: Vec<String> = ["R", "G", "B"]
-            .iter()
-            .enumerate()
-            .map(|(c, name)| {
-                if integral[c] > 0.0 {
-                    format!("{name} {:.2e}", removed[c] / integral[c])
-                } else {
-                    format!("{name} {:.2e} (absolute)", removed[c])
-                }
-            })
-            .collect();
-        notices.push(format!(
-            "clamped {neg_count} negative texel values to zero (lossy EXR codecs leave small \
-             ones); energy removed relative to the map's integral: {}",
-            rel.join(", ")
-        ));
-    }
-    if integral.iter().all(|&v| v == 0.0) {
-        notices.push("warning: the environment is black (its integral is zero)".into());
-    }
-    Ok(LoadedEnvironment { map, notices })
+    (neg_count, removed)
 }

@@ -79,61 +79,9 @@ impl Materials {
             .next_power_of_two()
             .min(MAX_TEXTURE_SIZE)
             .min(gpu.limits.max_texture_dimension_2d);
-        let texture_ref = |t: &Option<TextureRef>| match t {
-            Some(t) if layer_of.get(t.image).is_some_and(|&l| l != NO_TEXTURE) => GpuTexture {
-                row0: [t.transform[0][0], t.transform[0][1], t.transform[0][2], 0.0],
-                row1: [t.transform[1][0], t.transform[1][1], t.transform[1][2], 0.0],
-                info: [layer_of[t.image], t.tex_coord.min(1), t.wrap[0], t.wrap[1]],
-            },
-            _ => GpuTexture::NONE,
-        };
-        let default = crate::scene::Material::default();
-        let records: Vec<GpuMaterial> = scene
-            .materials
-            .iter()
-            .chain(std::iter::once(&default))
-            .map(|m| GpuMaterial {
-                base_color: m.base_color,
-                emission: [m.emission[0], m.emission[1], m.emission[2], m.cutoff().unwrap_or(-1.0)],
-                base_texture: texture_ref(&m.base_color_texture),
-                emissive_texture: texture_ref(&m.emissive_texture),
-            })
-            .collect();
+        let records = material_records(scene, &layer_of);
         let buffer = gpu.storage_buffer("materials", &records, wgpu::BufferUsages::empty());
-
-        let layers = (decoded.len() as u32).max(1);
-        let mip_levels = size.ilog2() + 1;
-        let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("material textures"),
-            size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: layers },
-            mip_level_count: mip_levels,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba16Float,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        });
-        for (layer, image) in decoded.iter().enumerate() {
-            for (level, mip) in mip_chain(image, size).into_iter().enumerate() {
-                let side = mip.width();
-                let halves: Vec<half::f16> = mip.as_raw().iter().map(|&v| half::f16::from_f32(v)).collect();
-                gpu.queue.write_texture(
-                    wgpu::TexelCopyTextureInfo {
-                        texture: &texture,
-                        mip_level: level as u32,
-                        origin: wgpu::Origin3d { x: 0, y: 0, z: layer as u32 },
-                        aspect: wgpu::TextureAspect::All,
-                    },
-                    bytemuck::cast_slice(&halves),
-                    wgpu::TexelCopyBufferLayout {
-                        offset: 0,
-                        bytes_per_row: Some(side * 8),
-                        rows_per_image: Some(side),
-                    },
-                    wgpu::Extent3d { width: side, height: side, depth_or_array_layers: 1 },
-                );
-            }
-        }
+        let texture = upload_layers(gpu, &decoded, size);
         let textures = texture.create_view(&wgpu::TextureViewDescriptor {
             dimension: Some(wgpu::TextureViewDimension::D2Array),
             ..Default::default()
@@ -151,6 +99,66 @@ impl Materials {
         });
         Materials { records, buffer, textures, sampler, texture_size: size }
     }
+}
+
+/// One record per material of `scene`, then glTF's default material; `layer_of` maps an
+/// image to its array layer (`NO_TEXTURE` for one not decoded).
+fn material_records(scene: &Scene, layer_of: &[u32]) -> Vec<GpuMaterial> {
+    let texture_ref = |t: &Option<TextureRef>| match t {
+        Some(t) if layer_of.get(t.image).is_some_and(|&l| l != NO_TEXTURE) => GpuTexture {
+            row0: [t.transform[0][0], t.transform[0][1], t.transform[0][2], 0.0],
+            row1: [t.transform[1][0], t.transform[1][1], t.transform[1][2], 0.0],
+            info: [layer_of[t.image], t.tex_coord.min(1), t.wrap[0], t.wrap[1]],
+        },
+        _ => GpuTexture::NONE,
+    };
+    let default = crate::scene::Material::default();
+    scene
+        .materials
+        .iter()
+        .chain(std::iter::once(&default))
+        .map(|m| GpuMaterial {
+            base_color: m.base_color,
+            emission: [m.emission[0], m.emission[1], m.emission[2], m.cutoff().unwrap_or(-1.0)],
+            base_texture: texture_ref(&m.base_color_texture),
+            emissive_texture: texture_ref(&m.emissive_texture),
+        })
+        .collect()
+}
+
+/// A `size`² array texture (at least one layer) with a full mip chain, holding each of
+/// `decoded` resampled in a layer of its own.
+fn upload_layers(gpu: &Gpu, decoded: &[&LinearImage], size: u32) -> wgpu::Texture {
+    let layers = (decoded.len() as u32).max(1);
+    let mip_levels = size.ilog2() + 1;
+    let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("material textures"),
+        size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: layers },
+        mip_level_count: mip_levels,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba16Float,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    for (layer, image) in decoded.iter().enumerate() {
+        for (level, mip) in mip_chain(image, size).into_iter().enumerate() {
+            let side = mip.width();
+            let halves: Vec<half::f16> = mip.as_raw().iter().map(|&v| half::f16::from_f32(v)).collect();
+            gpu.queue.write_texture(
+                wgpu::TexelCopyTextureInfo {
+                    texture: &texture,
+                    mip_level: level as u32,
+                    origin: wgpu::Origin3d { x: 0, y: 0, z: layer as u32 },
+                    aspect: wgpu::TextureAspect::All,
+                },
+                bytemuck::cast_slice(&halves),
+                wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(side * 8), rows_per_image: Some(side) },
+                wgpu::Extent3d { width: side, height: side, depth_or_array_layers: 1 },
+            );
+        }
+    }
+    texture
 }
 
 /// The image resampled to `size`² and halved down to 1×1, in linear light.

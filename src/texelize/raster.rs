@@ -82,63 +82,81 @@ fn rasterize(gpu: &Gpu, mesh: &Mesh, corners: &wgpu::Buffer, width: u32, height:
         ],
     });
     let bind_group = gpu::bind_buffers(gpu, "texelize_raster", &layout, &[&params, corners, &ratios]);
-    let module = gpu.shader(Shader::TexelizeRaster);
-    let pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some("texelize_raster"),
-        bind_group_layouts: &[Some(&layout)],
-        immediate_size: 0,
-    });
-    let pipeline =
-        |fragment: &str, targets: &[Option<wgpu::ColorTargetState>], depth: Option<wgpu::DepthStencilState>| {
-            gpu.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("texelize_raster"),
-                layout: Some(&pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs_dilated"),
-                    compilation_options: Default::default(),
-                    buffers: &[],
-                },
-                primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
-                depth_stencil: depth,
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some(fragment),
-                    compilation_options: Default::default(),
-                    targets,
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
-        };
-    let nearest = pipeline(
-        "fs_nearest",
-        &[Some(wgpu::TextureFormat::R32Uint.into()), Some(wgpu::TextureFormat::Rgba32Float.into())],
-        Some(wgpu::DepthStencilState {
-            format: wgpu::TextureFormat::Depth32Float,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(wgpu::CompareFunction::Less),
-            stencil: Default::default(),
-            bias: Default::default(),
-        }),
-    );
-    let additive = wgpu::BlendComponent {
-        src_factor: wgpu::BlendFactor::One,
-        dst_factor: wgpu::BlendFactor::One,
-        operation: wgpu::BlendOperation::Add,
-    };
-    let area = pipeline(
-        "fs_area",
-        &[Some(wgpu::ColorTargetState {
-            format: wgpu::TextureFormat::Rg32Float,
-            blend: Some(wgpu::BlendState { color: additive, alpha: additive }),
-            write_mask: wgpu::ColorWrites::ALL,
-        })],
-        None,
-    );
+    let pipelines = RasterPipelines::new(gpu, &layout);
+    draw(gpu, &pipelines, &bind_group, mesh.corners.len() as u32, targets);
+}
 
-    let vertex_count = mesh.corners.len() as u32;
+/// The two raster passes' pipelines, over the same dilated triangles.
+struct RasterPipelines {
+    /// Nearest triangle and its barycentrics per texel (depth: distance to the triangle).
+    nearest: wgpu::RenderPipeline,
+    /// Covered area per texel, summed additively.
+    area: wgpu::RenderPipeline,
+}
+
+impl RasterPipelines {
+    fn new(gpu: &Gpu, layout: &wgpu::BindGroupLayout) -> Self {
+        let module = gpu.shader(Shader::TexelizeRaster);
+        let pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("texelize_raster"),
+            bind_group_layouts: &[Some(layout)],
+            immediate_size: 0,
+        });
+        let pipeline =
+            |fragment: &str, targets: &[Option<wgpu::ColorTargetState>], depth: Option<wgpu::DepthStencilState>| {
+                gpu.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some("texelize_raster"),
+                    layout: Some(&pipeline_layout),
+                    vertex: wgpu::VertexState {
+                        module: &module,
+                        entry_point: Some("vs_dilated"),
+                        compilation_options: Default::default(),
+                        buffers: &[],
+                    },
+                    primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+                    depth_stencil: depth,
+                    multisample: Default::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &module,
+                        entry_point: Some(fragment),
+                        compilation_options: Default::default(),
+                        targets,
+                    }),
+                    multiview_mask: None,
+                    cache: None,
+                })
+            };
+        let nearest = pipeline(
+            "fs_nearest",
+            &[Some(wgpu::TextureFormat::R32Uint.into()), Some(wgpu::TextureFormat::Rgba32Float.into())],
+            Some(wgpu::DepthStencilState {
+                format: wgpu::TextureFormat::Depth32Float,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+        );
+        let additive = wgpu::BlendComponent {
+            src_factor: wgpu::BlendFactor::One,
+            dst_factor: wgpu::BlendFactor::One,
+            operation: wgpu::BlendOperation::Add,
+        };
+        let area = pipeline(
+            "fs_area",
+            &[Some(wgpu::ColorTargetState {
+                format: wgpu::TextureFormat::Rg32Float,
+                blend: Some(wgpu::BlendState { color: additive, alpha: additive }),
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+            None,
+        );
+        RasterPipelines { nearest, area }
+    }
+}
+
+/// Clears the targets and draws both passes, `vertex_count` corners each.
+fn draw(gpu: &Gpu, pipelines: &RasterPipelines, bind_group: &wgpu::BindGroup, vertex_count: u32, targets: &Targets) {
     let view = |t: &wgpu::Texture| t.create_view(&Default::default());
     let (triangle_view, bary_view, area_view, depth_view) =
         (view(&targets.triangle), view(&targets.bary), view(&targets.area), view(&targets.depth));
@@ -164,8 +182,8 @@ fn rasterize(gpu: &Gpu, mesh: &Mesh, corners: &wgpu::Buffer, width: u32, height:
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        pass.set_pipeline(&nearest);
-        pass.set_bind_group(0, &bind_group, &[]);
+        pass.set_pipeline(&pipelines.nearest);
+        pass.set_bind_group(0, bind_group, &[]);
         pass.draw(0..vertex_count, 0..1);
     }
     {
@@ -177,8 +195,8 @@ fn rasterize(gpu: &Gpu, mesh: &Mesh, corners: &wgpu::Buffer, width: u32, height:
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        pass.set_pipeline(&area);
-        pass.set_bind_group(0, &bind_group, &[]);
+        pass.set_pipeline(&pipelines.area);
+        pass.set_bind_group(0, bind_group, &[]);
         pass.draw(0..vertex_count, 0..1);
     }
     gpu.queue.submit([encoder.finish()]);

@@ -1,7 +1,7 @@
 //! Measuring an atlas: overlaps, flips, padding and texel-density error, by rasterizing every
 //! charted triangle conservatively at the page resolution.
 
-use super::{Atlas, MeshInput, triangle_area};
+use super::{Atlas, AtlasVertex, MeshInput, triangle_area};
 
 /// What [`inspect`] measured. Texel distances are Chebyshev (diagonal neighbours are 1 apart).
 #[derive(Clone, Debug, PartialEq)]
@@ -56,162 +56,227 @@ const CONFLICT: u32 = u32::MAX - 1;
 /// (pass at least `2·padding + 1` to verify padding). Cost: one pass over the page's texels
 /// plus `(2·gap_limit + 1)²` per chart texel.
 pub fn inspect(meshes: &[MeshInput], atlas: &Atlas, gap_limit: u32) -> Quality {
-    let (w, h) = (atlas.width as usize, atlas.height as usize);
-    let tpu2 = (atlas.texels_per_unit as f64).powi(2);
-    let texel_area = w as f64 * h as f64;
-    let mut grid = vec![EMPTY; w * h];
-    // Triangle (running number) whose interior holds each texel centre, for self-overlap.
-    let mut centres = vec![EMPTY; w * h];
-    let mut self_overlap = 0u64;
-    let mut tri_id = 0u32;
-    let mut malformed = 0u64;
-    // Per chart: |UV| area sum, world area sum.
-    let n = atlas.chart_count as usize;
-    let mut uv_sum = vec![0.0f64; n];
-    let mut world_sum = vec![0.0f64; n];
-    let mut weighted = 0.0f64;
-    let mut weight = 0.0f64;
-    let mut covered = 0.0f64;
-    // (chart, signed area) of each charted triangle, for the flip count.
-    let mut tris: Vec<(usize, f64)> = Vec::new();
-
+    let mut tally = Tally::new(atlas);
     // Missing meshes or triangles count as malformed.
     let missing = |n: usize, m: usize| (n.max(m) - n.min(m)) as u64;
-    malformed += missing(meshes.len(), atlas.meshes.len());
+    tally.malformed += missing(meshes.len(), atlas.meshes.len());
     for (m, out) in meshes.iter().zip(&atlas.meshes) {
-        malformed += missing(m.indices.len() / 3, out.indices.len() / 3);
+        tally.malformed += missing(m.indices.len() / 3, out.indices.len() / 3);
         for t in out.indices.chunks_exact(3) {
-            let Some(v) = t.iter().map(|&i| out.vertices.get(i as usize).copied()).collect::<Option<Vec<_>>>() else {
-                malformed += 1;
-                continue;
-            };
-            let in_range = |uv: [f32; 2]| uv.iter().all(|c| (0.0..=1.0).contains(c));
-            if v.iter().any(|x| !in_range(x.uv) || x.xref as usize >= m.positions.len()) {
-                malformed += 1;
-                continue;
-            }
-            let chart = v[0].chart;
-            if v.iter().any(|x| x.chart != chart) {
-                malformed += 1;
-                continue;
-            }
-            let a = uv_area(v[0].uv, v[1].uv, v[2].uv);
-            if chart == u32::MAX {
-                // Uncharted (ignored) triangles must cover nothing.
-                if a.abs() * texel_area > 1e-9 {
-                    malformed += 1;
-                }
-                continue;
-            }
-            let c = chart as usize;
-            if c >= n {
-                malformed += 1;
-                continue;
-            }
-            let world = triangle_area([0, 1, 2].map(|k| m.positions[v[k].xref as usize]));
-            uv_sum[c] += a.abs();
-            world_sum[c] += world;
-            covered += a.abs();
-            tris.push((c, a));
-            let texels = a.abs() * texel_area;
-            if world > 0.0 && texels > 0.0 && tpu2 > 0.0 {
-                let r = texels / (world * tpu2);
-                weighted += world * r.max(1.0 / r);
-                weight += world;
-            }
-            if texels > 1e-9 {
-                let p = v.iter().map(|x| [x.uv[0] as f64 * w as f64, x.uv[1] as f64 * h as f64]);
-                let p: Vec<[f64; 2]> = p.collect();
-                let p = [p[0], p[1], p[2]];
-                rasterize(p, w, h, |x, y| {
-                    let cell = &mut grid[y * w + x];
-                    if *cell == EMPTY {
-                        *cell = chart;
-                    } else if *cell != chart {
-                        *cell = CONFLICT;
-                    }
-                });
-                tri_id = tri_id.wrapping_add(1);
-                inside_centres(p, w, h, |x, y| {
-                    let cell = &mut centres[y * w + x];
-                    if *cell != EMPTY && grid[y * w + x] == chart {
-                        self_overlap += 1;
-                    }
-                    *cell = tri_id;
-                });
+            match t.iter().map(|&i| out.vertices.get(i as usize).copied()).collect::<Option<Vec<_>>>() {
+                Some(v) => tally.triangle(m, [v[0], v[1], v[2]]),
+                None => tally.malformed += 1,
             }
         }
     }
-
-    // Per chart, the triangles of the less common winding (non-degenerate ones).
-    let mut windings = vec![[0u64; 2]; n];
-    for &(c, a) in &tris {
-        if a.abs() * texel_area > 1e-9 {
-            windings[c][usize::from(a > 0.0)] += 1;
-        }
-    }
-    let flipped = windings.iter().map(|w| w[0].min(w[1])).sum();
-    let max_chart_distortion = (0..n)
-        .filter(|&c| world_sum[c] > 0.0 && uv_sum[c] > 0.0 && tpu2 > 0.0)
-        .map(|c| {
-            let r = uv_sum[c] * texel_area / (world_sum[c] * tpu2);
-            r.max(1.0 / r)
-        })
-        .fold(1.0, f64::max);
-
-    let mut overlap = 0u64;
-    let mut min_gap: Option<u32> = None;
-    let mut min_border: Option<u32> = None;
-    let lim = gap_limit as i64;
-    for y in 0..h {
-        for x in 0..w {
-            let c = grid[y * w + x];
-            if c == EMPTY {
-                continue;
-            }
-            if c == CONFLICT {
-                overlap += 1;
-                min_gap = Some(0);
-                continue;
-            }
-            let border = x.min(y).min(w - 1 - x).min(h - 1 - y) as u32;
-            min_border = Some(min_border.map_or(border, |b| b.min(border)));
-            // Only texels on a chart's outline can be nearest to another chart.
-            let interior = (y > 0 && y + 1 < h && x > 0 && x + 1 < w)
-                && [(-1i64, -1i64), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1)]
-                    .iter()
-                    .all(|&(dx, dy)| grid[(y as i64 + dy) as usize * w + (x as i64 + dx) as usize] == c);
-            if interior {
-                continue;
-            }
-            // Nearest texel of another chart within the current best distance.
-            let reach = min_gap.map_or(lim, |g| (g as i64).min(lim));
-            'search: for d in 1..=reach {
-                for (dx, dy) in ring(d) {
-                    let (xx, yy) = (x as i64 + dx, y as i64 + dy);
-                    if xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
-                        continue;
-                    }
-                    let o = grid[yy as usize * w + xx as usize];
-                    if o != EMPTY && o != c {
-                        let gap = (d - 1) as u32;
-                        min_gap = Some(min_gap.map_or(gap, |g| g.min(gap)));
-                        break 'search;
-                    }
-                }
-            }
-        }
-    }
+    let gaps = Gaps::measure(&tally.grid, tally.w, tally.h, gap_limit);
     Quality {
-        overlap_texels: overlap,
-        self_overlap_texels: self_overlap,
-        flipped_triangles: flipped,
-        malformed_triangles: malformed,
-        min_chart_gap: min_gap,
-        min_border_gap: min_border,
-        max_chart_distortion,
-        mean_triangle_distortion: if weight > 0.0 { weighted / weight } else { 1.0 },
-        utilization: covered,
+        overlap_texels: gaps.overlap,
+        self_overlap_texels: tally.self_overlap,
+        flipped_triangles: tally.flipped(),
+        malformed_triangles: tally.malformed,
+        min_chart_gap: gaps.min_gap,
+        min_border_gap: gaps.min_border,
+        max_chart_distortion: tally.max_chart_distortion(),
+        mean_triangle_distortion: if tally.weight > 0.0 { tally.weighted / tally.weight } else { 1.0 },
+        utilization: tally.covered,
+    }
+}
+
+/// What [`inspect`]'s pass over the output triangles accumulates.
+struct Tally {
+    w: usize,
+    h: usize,
+    /// Page area in texels: UV area to texels.
+    texel_area: f64,
+    /// Texels per world unit, squared: world area to texels.
+    tpu2: f64,
+    /// Per texel: `EMPTY`, the one chart touching it, or `CONFLICT`.
+    grid: Vec<u32>,
+    /// Triangle (running number) whose interior holds each texel centre, for self-overlap.
+    centres: Vec<u32>,
+    self_overlap: u64,
+    tri_id: u32,
+    malformed: u64,
+    /// Per chart: |UV| area sum, world area sum.
+    uv_sum: Vec<f64>,
+    world_sum: Vec<f64>,
+    /// Sums of world area × per-triangle distortion and of world area.
+    weighted: f64,
+    weight: f64,
+    covered: f64,
+    /// (chart, signed area) of each charted triangle, for the flip count.
+    tris: Vec<(usize, f64)>,
+}
+
+impl Tally {
+    fn new(atlas: &Atlas) -> Self {
+        let (w, h) = (atlas.width as usize, atlas.height as usize);
+        let n = atlas.chart_count as usize;
+        Tally {
+            w,
+            h,
+            texel_area: w as f64 * h as f64,
+            tpu2: (atlas.texels_per_unit as f64).powi(2),
+            grid: vec![EMPTY; w * h],
+            centres: vec![EMPTY; w * h],
+            self_overlap: 0,
+            tri_id: 0,
+            malformed: 0,
+            uv_sum: vec![0.0; n],
+            world_sum: vec![0.0; n],
+            weighted: 0.0,
+            weight: 0.0,
+            covered: 0.0,
+            tris: Vec::new(),
+        }
+    }
+
+    /// Checks one output triangle of mesh `m` and adds it to the sums and the grid.
+    fn triangle(&mut self, m: &MeshInput, v: [AtlasVertex; 3]) {
+        let in_range = |uv: [f32; 2]| uv.iter().all(|c| (0.0..=1.0).contains(c));
+        if v.iter().any(|x| !in_range(x.uv) || x.xref as usize >= m.positions.len()) {
+            self.malformed += 1;
+            return;
+        }
+        let chart = v[0].chart;
+        if v.iter().any(|x| x.chart != chart) {
+            self.malformed += 1;
+            return;
+        }
+        let a = uv_area(v[0].uv, v[1].uv, v[2].uv);
+        if chart == u32::MAX {
+            // Uncharted (ignored) triangles must cover nothing.
+            if a.abs() * self.texel_area > 1e-9 {
+                self.malformed += 1;
+            }
+            return;
+        }
+        let c = chart as usize;
+        if c >= self.uv_sum.len() {
+            self.malformed += 1;
+            return;
+        }
+        let world = triangle_area([0, 1, 2].map(|k| m.positions[v[k].xref as usize]));
+        self.uv_sum[c] += a.abs();
+        self.world_sum[c] += world;
+        self.covered += a.abs();
+        self.tris.push((c, a));
+        let texels = a.abs() * self.texel_area;
+        if world > 0.0 && texels > 0.0 && self.tpu2 > 0.0 {
+            let r = texels / (world * self.tpu2);
+            self.weighted += world * r.max(1.0 / r);
+            self.weight += world;
+        }
+        if texels > 1e-9 {
+            let (w, h) = (self.w, self.h);
+            let p = v.map(|x| [x.uv[0] as f64 * w as f64, x.uv[1] as f64 * h as f64]);
+            self.cover(p, chart);
+        }
+    }
+
+    /// Marks the texels triangle `p` (texel units) of `chart` touches, and counts texel
+    /// centres already inside another triangle of the same chart.
+    fn cover(&mut self, p: [[f64; 2]; 3], chart: u32) {
+        let (w, h) = (self.w, self.h);
+        let grid = &mut self.grid;
+        rasterize(p, w, h, |x, y| {
+            let cell = &mut grid[y * w + x];
+            if *cell == EMPTY {
+                *cell = chart;
+            } else if *cell != chart {
+                *cell = CONFLICT;
+            }
+        });
+        self.tri_id = self.tri_id.wrapping_add(1);
+        let (grid, centres, tri_id, self_overlap) =
+            (&self.grid, &mut self.centres, self.tri_id, &mut self.self_overlap);
+        inside_centres(p, w, h, |x, y| {
+            let cell = &mut centres[y * w + x];
+            if *cell != EMPTY && grid[y * w + x] == chart {
+                *self_overlap += 1;
+            }
+            *cell = tri_id;
+        });
+    }
+
+    /// Per chart, the triangles of the less common winding (non-degenerate ones).
+    fn flipped(&self) -> u64 {
+        let mut windings = vec![[0u64; 2]; self.uv_sum.len()];
+        for &(c, a) in &self.tris {
+            if a.abs() * self.texel_area > 1e-9 {
+                windings[c][usize::from(a > 0.0)] += 1;
+            }
+        }
+        windings.iter().map(|w| w[0].min(w[1])).sum()
+    }
+
+    fn max_chart_distortion(&self) -> f64 {
+        (0..self.uv_sum.len())
+            .filter(|&c| self.world_sum[c] > 0.0 && self.uv_sum[c] > 0.0 && self.tpu2 > 0.0)
+            .map(|c| {
+                let r = self.uv_sum[c] * self.texel_area / (self.world_sum[c] * self.tpu2);
+                r.max(1.0 / r)
+            })
+            .fold(1.0, f64::max)
+    }
+}
+
+/// Overlaps and distances between charts and to the border, on the chart grid.
+struct Gaps {
+    overlap: u64,
+    min_gap: Option<u32>,
+    min_border: Option<u32>,
+}
+
+impl Gaps {
+    fn measure(grid: &[u32], w: usize, h: usize, gap_limit: u32) -> Gaps {
+        let mut gaps = Gaps { overlap: 0, min_gap: None, min_border: None };
+        for y in 0..h {
+            for x in 0..w {
+                let c = grid[y * w + x];
+                if c == EMPTY {
+                    continue;
+                }
+                if c == CONFLICT {
+                    gaps.overlap += 1;
+                    gaps.min_gap = Some(0);
+                    continue;
+                }
+                let border = x.min(y).min(w - 1 - x).min(h - 1 - y) as u32;
+                gaps.min_border = Some(gaps.min_border.map_or(border, |b| b.min(border)));
+                // Only texels on a chart's outline can be nearest to another chart.
+                let interior = (y > 0 && y + 1 < h && x > 0 && x + 1 < w)
+                    && [(-1i64, -1i64), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1)]
+                        .iter()
+                        .all(|&(dx, dy)| grid[(y as i64 + dy) as usize * w + (x as i64 + dx) as usize] == c);
+                if !interior {
+                    gaps.nearest_other(grid, w, h, (x, y), gap_limit);
+                }
+            }
+        }
+        gaps
+    }
+
+    /// Lowers `min_gap` to the distance from chart texel `(x, y)` to the nearest texel of
+    /// another chart, searching no further than the current best.
+    fn nearest_other(&mut self, grid: &[u32], w: usize, h: usize, (x, y): (usize, usize), gap_limit: u32) {
+        let c = grid[y * w + x];
+        let reach = self.min_gap.map_or(gap_limit as i64, |g| (g as i64).min(gap_limit as i64));
+        for d in 1..=reach {
+            for (dx, dy) in ring(d) {
+                let (xx, yy) = (x as i64 + dx, y as i64 + dy);
+                if xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
+                    continue;
+                }
+                let o = grid[yy as usize * w + xx as usize];
+                if o != EMPTY && o != c {
+                    let gap = (d - 1) as u32;
+                    self.min_gap = Some(self.min_gap.map_or(gap, |g| g.min(gap)));
+                    return;
+                }
+            }
+        }
     }
 }
 

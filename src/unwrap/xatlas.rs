@@ -213,28 +213,7 @@ struct Page {
 pub(super) fn unwrap(meshes: &[MeshInput], options: &UnwrapOptions) -> anyhow::Result<Atlas> {
     let size = options.max_atlas_size;
     let pad = options.padding;
-
-    // Normalize positions: bounding-box centre to the origin, largest half-extent to 1000.
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for m in meshes {
-        for &i in m.indices {
-            let p = m.positions[i as usize];
-            for k in 0..3 {
-                lo[k] = lo[k].min(p[k] as f64);
-                hi[k] = hi[k].max(p[k] as f64);
-            }
-        }
-    }
-    let half = (0..3).map(|k| 0.5 * (hi[k] - lo[k])).fold(0.0, f64::max);
-    let centre: [f64; 3] = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]));
-    // World metres to normalized units.
-    let scale = if half > 0.0 && half.is_finite() { NORMALIZED_HALF_EXTENT / half } else { 1.0 };
-    let normalized: Vec<Vec<[f32; 3]>> = meshes
-        .iter()
-        .map(|m| {
-            m.positions.iter().map(|p| std::array::from_fn(|k| ((p[k] as f64 - centre[k]) * scale) as f32)).collect()
-        })
-        .collect();
+    let (normalized, scale) = normalize(meshes);
 
     let mut xa = XAtlas::new();
     // Input mesh index of each mesh added to xatlas.
@@ -257,57 +236,11 @@ pub(super) fn unwrap(meshes: &[MeshInput], options: &UnwrapOptions) -> anyhow::R
 
     // Normalized surface area, for the first density estimate and a cheap "cannot fit" test.
     let area_n: f64 = super::total_area(meshes) * scale * scale;
-    let pack = |xa: &mut XAtlas, density_n: f64| -> anyhow::Result<Trial<Page>> {
-        let s = size as f64;
-        if area_n * density_n * density_n > 1.05 * s * s {
-            // More chart area than the page has texels: don't spend a packing on it.
-            let side = (area_n.sqrt() * density_n).min(u32::MAX as f64 / 4.0) as u32;
-            return Ok(Trial {
-                width: side,
-                height: side,
-                result: Page { packed: Packed { atlas_count: 0, chart_count: 0, meshes: Vec::new() }, shift: 0.0 },
-            });
-        }
-        let packed = xa.pack(ffi::PackOptions {
-            // xatlas' default: random placement trials per chart (fixed seed: deterministic).
-            attempts: 4096,
-            texelsPerUnit: density_n as f32,
-            // 0: a single page that grows to fit; never several atlases.
-            resolution: 0,
-            // Charts beyond the page can't fit anyway; bound their bitmaps (a chart scaled
-            // down to this still makes the page too large, so it never yields a fit).
-            maxChartSize: size + 1,
-            blockAlign: false,
-            conservative: true,
-            // One-sided dilation (see the module docs): 2p gives 2p empty texels between charts.
-            padding: 2 * pad,
-        })?;
-        if packed.atlas_count > 1 {
-            bail!("xatlas produced {} atlases", packed.atlas_count);
-        }
-        // Actual chart extent (texels), then `pad` on each side.
-        let shift = pad as f32;
-        let (mut max_u, mut max_v) = (0.0f32, 0.0f32);
-        for m in &packed.meshes {
-            for v in &m.vertices {
-                if v.atlasIndex >= 0 {
-                    max_u = max_u.max(v.uv[0] + shift);
-                    max_v = max_v.max(v.uv[1] + shift);
-                }
-            }
-        }
-        let side = |max: f32| (max.ceil() as u32).saturating_add(pad).max(1);
-        Ok(Trial { width: side(max_u), height: side(max_v), result: Page { packed, shift } })
-    };
-
     let requested = options.texels_per_unit.map(|t| t as f64 / scale);
     // xatlas' own estimate assumes 75% utilization; padding lowers it.
     let estimate = (0.6 * (size as f64).powi(2) / area_n).sqrt();
-    let fitted = fit_density(|d| pack(&mut xa, d), requested, estimate, size)?.ok_or(UnwrapError::DoesNotFit {
-        charts: xa.chart_count(),
-        size,
-        padding: pad,
-    })?;
+    let fitted = fit_density(|d| pack_trial(&mut xa, area_n, d, size, pad), requested, estimate, size)?
+        .ok_or(UnwrapError::DoesNotFit { charts: xa.chart_count(), size, padding: pad })?;
     let density = fitted.density * scale;
     let mut notices = Vec::new();
     if let Some(t) = options.texels_per_unit
@@ -330,6 +263,77 @@ pub(super) fn unwrap(meshes: &[MeshInput], options: &UnwrapOptions) -> anyhow::R
         meshes: out,
         notices,
     })
+}
+
+/// Normalizes positions for xatlas' absolute tolerances: bounding-box centre (of the indexed
+/// vertices) to the origin, largest half-extent to [`NORMALIZED_HALF_EXTENT`]. Gives the
+/// positions and the scale from world metres to normalized units.
+fn normalize(meshes: &[MeshInput]) -> (Vec<Vec<[f32; 3]>>, f64) {
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for m in meshes {
+        for &i in m.indices {
+            let p = m.positions[i as usize];
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k] as f64);
+                hi[k] = hi[k].max(p[k] as f64);
+            }
+        }
+    }
+    let half = (0..3).map(|k| 0.5 * (hi[k] - lo[k])).fold(0.0, f64::max);
+    let centre: [f64; 3] = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]));
+    let scale = if half > 0.0 && half.is_finite() { NORMALIZED_HALF_EXTENT / half } else { 1.0 };
+    let normalized: Vec<Vec<[f32; 3]>> = meshes
+        .iter()
+        .map(|m| {
+            m.positions.iter().map(|p| std::array::from_fn(|k| ((p[k] as f64 - centre[k]) * scale) as f32)).collect()
+        })
+        .collect();
+    (normalized, scale)
+}
+
+/// One packing trial at `density_n` texels per normalized unit: the page size it needs
+/// (charts' extent plus `pad` on each side) and the packing.
+fn pack_trial(xa: &mut XAtlas, area_n: f64, density_n: f64, size: u32, pad: u32) -> anyhow::Result<Trial<Page>> {
+    let s = size as f64;
+    if area_n * density_n * density_n > 1.05 * s * s {
+        // More chart area than the page has texels: don't spend a packing on it.
+        let side = (area_n.sqrt() * density_n).min(u32::MAX as f64 / 4.0) as u32;
+        return Ok(Trial {
+            width: side,
+            height: side,
+            result: Page { packed: Packed { atlas_count: 0, chart_count: 0, meshes: Vec::new() }, shift: 0.0 },
+        });
+    }
+    let packed = xa.pack(ffi::PackOptions {
+        // xatlas' default: random placement trials per chart (fixed seed: deterministic).
+        attempts: 4096,
+        texelsPerUnit: density_n as f32,
+        // 0: a single page that grows to fit; never several atlases.
+        resolution: 0,
+        // Charts beyond the page can't fit anyway; bound their bitmaps (a chart scaled
+        // down to this still makes the page too large, so it never yields a fit).
+        maxChartSize: size + 1,
+        blockAlign: false,
+        conservative: true,
+        // One-sided dilation (see the module docs): 2p gives 2p empty texels between charts.
+        padding: 2 * pad,
+    })?;
+    if packed.atlas_count > 1 {
+        bail!("xatlas produced {} atlases", packed.atlas_count);
+    }
+    // Actual chart extent (texels), then `pad` on each side.
+    let shift = pad as f32;
+    let (mut max_u, mut max_v) = (0.0f32, 0.0f32);
+    for m in &packed.meshes {
+        for v in &m.vertices {
+            if v.atlasIndex >= 0 {
+                max_u = max_u.max(v.uv[0] + shift);
+                max_v = max_v.max(v.uv[1] + shift);
+            }
+        }
+    }
+    let side = |max: f32| (max.ceil() as u32).saturating_add(pad).max(1);
+    Ok(Trial { width: side(max_u), height: side(max_v), result: Page { packed, shift } })
 }
 
 /// Converts xatlas' meshes to ours: normalized UVs, global chart ids, ignored faces collapsed
