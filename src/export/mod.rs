@@ -15,6 +15,7 @@
 
 pub mod document;
 pub mod glb;
+pub mod ktx2;
 pub mod lightmap;
 pub mod materials;
 pub mod primitives;
