@@ -9,6 +9,8 @@
 //!   linear PNG of the irradiance over its scale, `lightmap.rs`); which one
 //!   a primitive draws by default is [`MaterialDefault`].
 //! - `NAME.lightmap0.exr`: L_lm per texel in full float HDR.
+//! - `NAME.lightmap0.ktx2`: the same L_lm as an engine's float lightmap
+//!   (E5B9G9R9, zstd: `ktx2.rs`), which Bevy's `Lightmap` takes as it is.
 //!
 //! The same inputs and options give byte-identical files: nothing here
 //! depends on time, hashing order or threads.
@@ -127,6 +129,8 @@ pub fn run(baked: &Input, options: &ExportOptions, dir: &Path) -> Result<ExportS
     lightmap.check_shippable()?;
     let exr_name = format!("{}.lightmap0.exr", scene.name);
     let exr = lightmap.encode_exr()?;
+    let ktx2_name = format!("{}.lightmap0.ktx2", scene.name);
+    let ktx2_bytes = ktx2::encode(lightmap.width, lightmap.height, &lightmap.pixels)?;
     let beauty_png = beauty.encode_png(options.exposure.exp2())?;
     let scale = lightmap.irradiance_scale();
     let irradiance_png = lightmap.encode_irradiance_png(scale)?;
@@ -164,7 +168,9 @@ pub fn run(baked: &Input, options: &ExportOptions, dir: &Path) -> Result<ExportS
     );
 
     let mut files = Vec::new();
-    for (name, bytes) in document.into_files(&scene.name, options.format)?.into_iter().chain([(exr_name, exr)]) {
+    for (name, bytes) in
+        document.into_files(&scene.name, options.format)?.into_iter().chain([(exr_name, exr), (ktx2_name, ktx2_bytes)])
+    {
         let path = dir.join(&name);
         write_new(&path, &bytes)?;
         files.push(path);
