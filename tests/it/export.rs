@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::process::{Command, Output};
 
-use crate::common::fixture;
+use crate::common::{fixture, read_exr};
 use bake::asset::{SourceAsset, accessor};
 use bake::report::Report;
 use serde_json::{Value, json};
@@ -240,19 +240,6 @@ fn png_chunks(png: &[u8]) -> Vec<String> {
         at += 12 + length;
     }
     chunks
-}
-
-/// A lightmap EXR's texels, row by row from the top, with its width.
-fn read_exr(path: &Path) -> (usize, Vec<[f32; 3]>) {
-    let exr = exr::prelude::read_first_rgba_layer_from_file(
-        path,
-        |size, _| (size.width(), vec![[0f32; 3]; size.width() * size.height()]),
-        |(w, pixels), position, (r, g, b, _a): (f32, f32, f32, f32)| {
-            pixels[position.y() * *w + position.x()] = [r, g, b]
-        },
-    )
-    .unwrap();
-    exr.layer_data.channel_data.pixels
 }
 
 #[test]
