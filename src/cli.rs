@@ -23,8 +23,10 @@ use crate::unwrap::{Backend, UnwrapOptions};
 /// Each input gets `OUT/<name>.glb` (TEXCOORD_1 plus the baked lighting, shown
 /// by any glTF viewer; the input's own material with the lightmap as
 /// MOZ_lightmap one KHR_materials_variants variant away, or the other way
-/// round with `--material engine`) and `OUT/<name>.lightmap0.exr` (the HDR
-/// lightmap, L_lm = E/π per texel); the run writes `OUT/report.json`.
+/// round with `--material engine`), `OUT/<name>.lightmap0.exr` (the HDR
+/// lightmap, L_lm = E/π per texel) and `OUT/<name>.lightmap0.ktx2` (the same
+/// as an engine's float texture, E5B9G9R9: Bevy's Lightmap); the run writes
+/// `OUT/report.json`.
 /// Outputs appear only when the whole run succeeds; inputs are never modified.
 /// `bake check` compares a bake's report with a golden one (see `bake check --help`).
 ///

@@ -82,7 +82,7 @@ impl Staging {
                     "two inputs are named '{stem}': their outputs would overwrite each other; bake them into different folders"
                 );
             }
-            for produced in [format!("{stem}.glb"), format!("{stem}.lightmap0.exr")] {
+            for produced in [format!("{stem}.glb"), format!("{stem}.lightmap0.exr"), format!("{stem}.lightmap0.ktx2")] {
                 let target = output.join(&produced);
                 if same_file(&target, input) {
                     bail!(

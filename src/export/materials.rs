@@ -386,8 +386,8 @@ mod tests {
                         { "primitives": [ { "attributes": {}, "material": 1 } ] } ],
         }));
         let rewritten = [
-            Rewritten { mesh: 0, primitive: 0, material: Some(0), moved_uv1_to: None },
-            Rewritten { mesh: 0, primitive: 1, material: Some(1), moved_uv1_to: None },
+            Rewritten { node: 0, mesh: 0, primitive: 0, material: Some(0), moved_uv1_to: None },
+            Rewritten { node: 0, mesh: 0, primitive: 1, material: Some(1), moved_uv1_to: None },
         ];
         assign(&mut document, &rewritten, Textures { baked: 7, lightmap: 8, intensity: 2.5 }, MaterialDefault::Preview);
         let json = &document.json;

@@ -9,17 +9,24 @@
 //!   linear PNG of the irradiance over its scale, `lightmap.rs`); which one
 //!   a primitive draws by default is [`MaterialDefault`].
 //! - `NAME.lightmap0.exr`: L_lm per texel in full float HDR.
+//! - `NAME.lightmap0.ktx2`: the same L_lm as an engine's float lightmap
+//!   (E5B9G9R9, zstd: `ktx2.rs`), which Bevy's `Lightmap` takes as it is;
+//!   each node that draws baked primitives names it in `extras.bake`, with
+//!   its `uv_rect` and the camera EV100 at which Bevy shows what the preview
+//!   shows.
 //!
 //! The same inputs and options give byte-identical files: nothing here
 //! depends on time, hashing order or threads.
 
 pub mod document;
 pub mod glb;
+pub mod ktx2;
 pub mod lightmap;
 pub mod materials;
 pub mod primitives;
 pub mod seams;
 
+use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -126,6 +133,8 @@ pub fn run(baked: &Input, options: &ExportOptions, dir: &Path) -> Result<ExportS
     lightmap.check_shippable()?;
     let exr_name = format!("{}.lightmap0.exr", scene.name);
     let exr = lightmap.encode_exr()?;
+    let ktx2_name = format!("{}.lightmap0.ktx2", scene.name);
+    let ktx2_bytes = ktx2::encode(lightmap.width, lightmap.height, &lightmap.pixels)?;
     let beauty_png = beauty.encode_png(options.exposure.exp2())?;
     let scale = lightmap.irradiance_scale();
     let irradiance_png = lightmap.encode_irradiance_png(scale)?;
@@ -154,7 +163,8 @@ pub fn run(baked: &Input, options: &ExportOptions, dir: &Path) -> Result<ExportS
             "hdr": exr_name,
         }})),
     );
-    let (rewritten, notices) = primitives::rewrite(&mut document, scene, atlas, baked.uv1_reused)?;
+    let (rewritten, mut notices) = primitives::rewrite(&mut document, scene, atlas, baked.uv1_reused)?;
+    notices.extend(record_lightmapped_nodes(&mut document, &rewritten, &ktx2_name, options.exposure));
     materials::assign(
         &mut document,
         &rewritten,
@@ -163,7 +173,9 @@ pub fn run(baked: &Input, options: &ExportOptions, dir: &Path) -> Result<ExportS
     );
 
     let mut files = Vec::new();
-    for (name, bytes) in document.into_files(&scene.name, options.format)?.into_iter().chain([(exr_name, exr)]) {
+    for (name, bytes) in
+        document.into_files(&scene.name, options.format)?.into_iter().chain([(exr_name, exr), (ktx2_name, ktx2_bytes)])
+    {
         let path = dir.join(&name);
         write_new(&path, &bytes)?;
         files.push(path);
@@ -177,6 +189,58 @@ pub fn run(baked: &Input, options: &ExportOptions, dir: &Path) -> Result<ExportS
         lightmap_intensity: scale,
         notices,
     })
+}
+
+/// Records in `extras.bake` of each node that draws baked primitives what
+/// an engine needs to attach the KTX2 lightmap to them as Bevy's `Lightmap`
+/// does (README, "Using the lightmap in an engine"): the file, the UV set
+/// and the `uv_rect` over it (the whole atlas: TEXCOORD_1 spans it), which
+/// primitives, and the camera EV100 at which Bevy, with no tone mapping and
+/// `lightmap_exposure` 1, shows albedo · L_lm as the preview does. Bevy
+/// scales the lightmap by 2^-EV100 / 1.2 and the preview by 2^exposure, so
+/// EV100 = −exposure − log2 1.2. A node whose extras are not a JSON object
+/// keeps them as they are, with a notice.
+fn record_lightmapped_nodes(
+    document: &mut Document,
+    rewritten: &[primitives::Rewritten],
+    lightmap: &str,
+    exposure: f32,
+) -> Vec<String> {
+    let mut primitives: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+    for r in rewritten {
+        primitives.entry(r.node).or_default().push(r.primitive);
+    }
+    let ev100 = -f64::from(exposure) - 1.2f64.log2();
+    let mut notices = Vec::new();
+    for (node, mut drawn) in primitives {
+        drawn.sort_unstable();
+        drawn.dedup();
+        let extras = &mut document.json["nodes"][node]["extras"];
+        if extras.is_null() {
+            *extras = json!({});
+        }
+        let Some(extras) = extras.as_object_mut() else {
+            notices.push(format!(
+                "node {node}: its extras are not a JSON object, so they do not name its KTX2 lightmap (extras.bake)"
+            ));
+            continue;
+        };
+        extras.insert(
+            "bake".into(),
+            json!({
+                "lightmap": lightmap,
+                "texCoord": 1,
+                "uv_rect": [0.0, 0.0, 1.0, 1.0],
+                "primitives": drawn,
+                "content": "L_lm = E/pi per texel, linear RGB (Rec. 709 primaries), E5B9G9R9: Bevy's Lightmap takes \
+                            it as it is (no pi, lightmap_exposure 1)",
+                "ev100": ev100,
+                "ev100_means": "the camera EV100 at which Bevy, with no tone mapping, shows albedo * L_lm as the \
+                                unlit preview does",
+            }),
+        );
+    }
+    notices
 }
 
 /// Writes a file that must not exist yet: two outputs of one run never share a name.
@@ -207,4 +271,37 @@ pub fn source_files(source: &SourceAsset) -> Vec<PathBuf> {
         .filter_map(|uri| crate::asset::percent_decode(uri).ok())
         .map(|relative| base.join(relative));
     std::iter::once(source.path.clone()).chain(external).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use primitives::Rewritten;
+
+    #[test]
+    fn baked_nodes_name_the_ktx2_lightmap_and_keep_their_own_extras() {
+        let mut document = Document::for_tests(json!({ "nodes": [
+            { "extras": { "layer": "static" } },
+            { "extras": { "bake": { "lightmap": "old.lightmap0.ktx2" } } },
+            { "extras": "a string" },
+            { "name": "not baked" },
+        ]}));
+        let drawn = |node, primitive| Rewritten { node, mesh: node, primitive, material: None, moved_uv1_to: None };
+        let rewritten = [drawn(0, 2), drawn(0, 0), drawn(1, 0), drawn(2, 0)];
+        let notices = record_lightmapped_nodes(&mut document, &rewritten, "a.lightmap0.ktx2", 1.0);
+        let nodes = &document.json["nodes"];
+        assert_eq!(nodes[0]["extras"]["layer"], "static");
+        let bake = &nodes[0]["extras"]["bake"];
+        assert_eq!((&bake["lightmap"], &bake["primitives"]), (&json!("a.lightmap0.ktx2"), &json!([0, 2])));
+        assert_eq!((&bake["texCoord"], &bake["uv_rect"]), (&json!(1), &json!([0.0, 0.0, 1.0, 1.0])));
+        // Bevy's 2^-EV100/1.2 equals the preview's 2^exposure.
+        let ev100 = bake["ev100"].as_f64().unwrap();
+        assert!(((-ev100).exp2() / 1.2 - 2.0).abs() < 1e-12, "{ev100}");
+        // A previous bake's record is replaced; extras that are not an object are left, with a notice.
+        assert_eq!(nodes[1]["extras"]["bake"]["lightmap"], "a.lightmap0.ktx2");
+        assert_eq!(nodes[2]["extras"], "a string");
+        assert_eq!(notices.len(), 1);
+        assert!(notices[0].starts_with("node 2: its extras are not a JSON object"), "{notices:?}");
+        assert_eq!(nodes[3], json!({ "name": "not baked" }));
+    }
 }

@@ -33,6 +33,8 @@ const UNSIGNED_INT: u32 = 5125;
 /// One rewritten primitive of the output document.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Rewritten {
+    /// The output node that draws it: the baked node, or the child node of its GPU instance.
+    pub node: usize,
     /// Output mesh index (the input's, or a copy's) and primitive index within it.
     pub mesh: usize,
     pub primitive: usize,
@@ -114,7 +116,7 @@ pub fn rewrite(
             None => None,
         };
 
-        let mesh = mesh_of[&(primitive.node, primitive.instance)];
+        let (mesh, node) = mesh_of[&(primitive.node, primitive.instance)];
         let out = &mut document.json["meshes"][mesh]["primitives"][primitive.primitive];
         if !out.is_object() {
             bail!("{what}: not found in the output document");
@@ -125,18 +127,28 @@ pub fn rewrite(
         if let Some(targets) = targets {
             out["targets"] = targets;
         }
-        rewritten.push(Rewritten { mesh, primitive: primitive.primitive, material: primitive.material, moved_uv1_to });
+        rewritten.push(Rewritten {
+            node,
+            mesh,
+            primitive: primitive.primitive,
+            material: primitive.material,
+            moved_uv1_to,
+        });
     }
     Ok((rewritten, notices.into_iter().collect()))
 }
 
-/// Which output mesh each baked node (or GPU instance) draws. A mesh keeps
+/// Output (mesh, node) by (baked node, GPU instance): `output_meshes`.
+type MeshOf = BTreeMap<(usize, Option<usize>), (usize, usize)>;
+
+/// Which output mesh each baked node (or GPU instance) draws, and the output
+/// node that draws it (the node, or its instance's child). A mesh keeps
 /// its index for the first baked node that draws it, unless a node that is
 /// not baked draws it too; every other baked node gets a copy (appended to
 /// `meshes`, the node pointed at it). Each instance of an instanced node
 /// becomes a child node drawing a mesh of its own; the node keeps its
 /// transform and children but draws nothing itself.
-fn output_meshes(document: &mut Document, scene: &Scene) -> Result<BTreeMap<(usize, Option<usize>), usize>> {
+fn output_meshes(document: &mut Document, scene: &Scene) -> Result<MeshOf> {
     let baked_nodes: BTreeSet<usize> = scene.primitives.iter().map(|p| p.node).collect();
     let nodes = document.json.get("nodes").and_then(Value::as_array).cloned().unwrap_or_default();
     let drawn_by_others: BTreeSet<usize> = nodes
@@ -181,7 +193,7 @@ fn output_meshes(document: &mut Document, scene: &Scene) -> Result<BTreeMap<(usi
             }
         };
         document.json["nodes"][drawer]["mesh"] = json!(target);
-        mesh_of.insert(key, target);
+        mesh_of.insert(key, (target, drawer));
     }
     for &node in instanced.keys() {
         let node = &mut document.json["nodes"][node];

@@ -94,6 +94,19 @@ pub fn fixture(name: &str) -> std::path::PathBuf {
     repo("fixtures").join(name)
 }
 
+/// A lightmap EXR's texels, row by row from the top, with its width.
+pub fn read_exr(path: &Path) -> (usize, Vec<[f32; 3]>) {
+    let exr = exr::prelude::read_first_rgba_layer_from_file(
+        path,
+        |size, _| (size.width(), vec![[0f32; 3]; size.width() * size.height()]),
+        |(w, pixels), position, (r, g, b, _a): (f32, f32, f32, f32)| {
+            pixels[position.y() * *w + position.x()] = [r, g, b]
+        },
+    )
+    .unwrap();
+    exr.layer_data.channel_data.pixels
+}
+
 /// Runs the bake binary in `dir` with `args`.
 pub fn run_bake(dir: &Path, args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_bake")).current_dir(dir).args(args).output().expect("bake runs")

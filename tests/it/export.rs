@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::process::{Command, Output};
 
-use crate::common::fixture;
+use crate::common::{fixture, read_exr};
 use bake::asset::{SourceAsset, accessor};
 use bake::report::Report;
 use serde_json::{Value, json};
@@ -116,11 +116,12 @@ fn everything_in_the_input_survives() {
     }
     assert_eq!(b.get("extensionsRequired"), a.get("extensionsRequired"), "bake requires nothing new");
 
-    // Nodes: same count and order, every field kept; a baked node may point at a copy of its mesh.
+    // Nodes: same count and order, every field kept; a baked node may point at a copy of its mesh,
+    // and gains `extras.bake`, naming its KTX2 lightmap (tests/it/lightmap_ktx2.rs).
     assert_eq!(count(b, "nodes"), count(a, "nodes"));
     let input_meshes = count(a, "meshes");
     for (i, (x, y)) in a["nodes"].as_array().unwrap().iter().zip(b["nodes"].as_array().unwrap()).enumerate() {
-        assert_eq!(without(y, "", "mesh"), without(x, "", "mesh"), "node {i}");
+        assert_eq!(without(&without(y, "", "mesh"), "/extras", "bake"), without(x, "", "mesh"), "node {i}");
         if let Some(mesh) = x["mesh"].as_u64() {
             let out = y["mesh"].as_u64().unwrap();
             assert!(out == mesh || out as usize >= input_meshes, "node {i} draws mesh {out}");
@@ -242,19 +243,6 @@ fn png_chunks(png: &[u8]) -> Vec<String> {
     chunks
 }
 
-/// A lightmap EXR's texels, row by row from the top, with its width.
-fn read_exr(path: &Path) -> (usize, Vec<[f32; 3]>) {
-    let exr = exr::prelude::read_first_rgba_layer_from_file(
-        path,
-        |size, _| (size.width(), vec![[0f32; 3]; size.width() * size.height()]),
-        |(w, pixels), position, (r, g, b, _a): (f32, f32, f32, f32)| {
-            pixels[position.y() * *w + position.x()] = [r, g, b]
-        },
-    )
-    .unwrap();
-    exr.layer_data.channel_data.pixels
-}
-
 #[test]
 fn the_moz_lightmap_is_linear_irradiance_over_its_intensity() {
     let dir = tempfile::tempdir().unwrap();
@@ -372,6 +360,7 @@ fn the_gltf_form_holds_the_same_scene_in_separate_files() {
             "everything.gltf",
             "everything.image1.png",
             "everything.lightmap0.exr",
+            "everything.lightmap0.ktx2",
             "everything.lightmap0.png",
         ]
     );
@@ -380,7 +369,7 @@ fn the_gltf_form_holds_the_same_scene_in_separate_files() {
         .iter()
         .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
         .collect();
-    assert_eq!(outputs.len(), 6, "{outputs:?}");
+    assert_eq!(outputs.len(), 7, "{outputs:?}");
 
     // Everything resolves through its URI, as a loader reads it.
     let (document, buffers, images) = gltf::import(gltf_dir.join("everything.gltf")).expect("the .gltf loads");
@@ -397,7 +386,9 @@ fn the_gltf_form_holds_the_same_scene_in_separate_files() {
     let bin = &written["everything.bin"];
     assert_eq!(&glb.buffers[0][..bin.len()], &bin[..]);
     assert_eq!(written["everything.image1.png"], glb.image_bytes(1).unwrap().0);
-    assert_eq!(written["everything.lightmap0.exr"], std::fs::read(glb_dir.join("everything.lightmap0.exr")).unwrap());
+    for lightmap in ["everything.lightmap0.exr", "everything.lightmap0.ktx2"] {
+        assert_eq!(written[lightmap], std::fs::read(glb_dir.join(lightmap)).unwrap(), "{lightmap}");
+    }
 }
 
 #[test]
@@ -482,7 +473,8 @@ fn outputs_never_replace_a_file_of_an_input() {
     bake_ok(&input, &folder, &[]);
     let after = files(&folder);
     for (name, bytes) in &before {
-        if name != "everything.lightmap0.exr" {
+        // The HDR lightmaps are this bake's, of the baked file.
+        if name != "everything.lightmap0.exr" && name != "everything.lightmap0.ktx2" {
             assert_eq!(&after[name], bytes, "{name} changed");
         }
     }

@@ -23,6 +23,7 @@ mod imports;
 mod instancing;
 mod ktx2;
 mod leaks;
+mod lightmap_ktx2;
 mod lights;
 mod materials;
 mod morph;

@@ -177,7 +177,7 @@ fn gpu_instances_become_child_nodes_each_with_its_own_lightmap_uvs() {
         assert!(!names.iter().any(|n| n == "EXT_mesh_gpu_instancing"), "{list}: {names:?}");
     }
     let node = &out["nodes"][1];
-    assert!(node.get("mesh").is_none() && node.get("extensions").is_none(), "{node}");
+    assert!(node.get("mesh").is_none() && node.get("extensions").is_none() && node.get("extras").is_none(), "{node}");
     let parent = document.nodes().nth(1).unwrap().transform().decomposed().0;
     assert!(parent.iter().zip([0.3, 0.0, -0.4]).all(|(a, b)| (a - b).abs() < 1e-6), "the node keeps its place");
     let children: Vec<usize> =
@@ -193,6 +193,8 @@ fn gpu_instances_become_child_nodes_each_with_its_own_lightmap_uvs() {
         assert!(close(&r, &instance.rotation.to_array()), "instance {k}: rotation {r:?}");
         assert!(close(&s, &instance.scale.to_array()), "instance {k}: scale {s:?}");
         assert_eq!(child_json["extras"]["EXT_mesh_gpu_instancing"]["_ID"], k, "the custom attribute is kept");
+        // The child draws the baked instance: it names the KTX2 lightmap, beside the attribute.
+        assert_eq!(child_json["extras"]["bake"]["lightmap"], "boxes.lightmap0.ktx2", "instance {k}");
         let primitive = child.mesh().expect("each instance draws a mesh").primitives().next().unwrap();
         let reader = primitive.reader(|b| Some(&buffers[b.index()]));
         let uv: Vec<[f32; 2]> = reader.read_tex_coords(1).expect("lightmap UVs").into_f32().collect();
