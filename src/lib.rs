@@ -8,6 +8,8 @@
 //! them together for the CLI; `bake_scene` does the in-memory part for tests
 //! and library users.
 
+#![warn(clippy::too_many_lines)]
+
 pub mod asset;
 pub mod check;
 pub mod cli;

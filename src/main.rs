@@ -1,6 +1,8 @@
 //! The `bake` command: parse, run, print the error chain once, exit with a
 //! code that means something (0 ok, 1 `bake check` failed, 2 error).
 
+#![warn(clippy::too_many_lines)]
+
 use std::process::ExitCode;
 
 use clap::Parser;

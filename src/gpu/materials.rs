@@ -174,3 +174,20 @@ fn mip_chain(image: &LinearImage, size: u32) -> Vec<ImageBuffer<Rgba<f32>, Vec<f
     }
     levels
 }
+
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+    use crate::gpu::Shader;
+    use crate::gpu::mirror::assert_mirrors;
+
+    #[test]
+    fn the_material_records_mirror_common_wgsl() {
+        assert_mirrors!(Shader::TexelizeAttributes, "TextureRef", GpuTexture { row0, row1, info });
+        assert_mirrors!(
+            Shader::TexelizeAttributes,
+            "Material",
+            GpuMaterial { base_color, emission, base_texture, emissive_texture }
+        );
+    }
+}

@@ -238,7 +238,7 @@ struct Shooter {
     position: [f32; 3],
     area: f32,
     normal: [f32; 3],
-    patch: u32,
+    patch_index: u32,
     radiance: [f32; 3],
     radius: f32,
     rect_centre: [f32; 3],
@@ -1241,5 +1241,43 @@ fn render_hemicubes(
                 None => r.casters.draw(&mut pass, opaque, masked, 0),
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+    use crate::gpu::mirror::assert_mirrors;
+    use crate::gpu::Shader;
+
+    #[test]
+    fn the_bounce_structs_mirror_common_wgsl() {
+        assert_mirrors!(
+            Shader::SolveShoot,
+            "BounceParams",
+            BounceParams {
+                texel_count,
+                patch_count,
+                shooter_count,
+                row_stride,
+                face_size,
+                tiles_per_row,
+                far,
+                near,
+                receiver_offset,
+                max_slope,
+                chunk_count,
+                atlas_width,
+                cell,
+                in_plane,
+            }
+        );
+        assert_mirrors!(
+            Shader::SolveShoot,
+            "Shooter",
+            Shooter { position, area, normal, patch_index, radiance, radius, rect_centre, lift, half_u, rect_area, half_v }
+        );
+        assert_mirrors!(Shader::SolveHemicube, "HemicubeFace", HemicubeFace { position, lift, normal, face });
+        assert_mirrors!(Shader::SolveSelect, "BounceStats", GpuStats { unshot, received, shot, shooters, landing });
     }
 }

@@ -190,3 +190,19 @@ fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
         ],
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gpu::mirror::assert_mirrors;
+
+    #[test]
+    fn the_cull_structs_mirror_their_shader() {
+        assert_mirrors!(
+            Shader::SolveHemicubeCull,
+            "CullParams",
+            CullParams { triangles, capacity, lists_first, faces, near, row_stride }
+        );
+        assert_mirrors!(Shader::SolveHemicubeCull, "Solid", GpuSolid { lo, outside_facing, hi });
+    }
+}

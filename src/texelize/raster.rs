@@ -301,3 +301,19 @@ fn interpolate(
     }
     Ok(covered)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gpu::mirror::assert_mirrors;
+
+    #[test]
+    fn the_params_mirror_their_shaders() {
+        assert_mirrors!(Shader::TexelizeRaster, "RasterParams", RasterParams { size, dilation, max_miter });
+        assert_mirrors!(
+            Shader::TexelizeAttributes,
+            "AttributeParams",
+            AttributeParams { width, height, first_row, rows, inset }
+        );
+    }
+}
