@@ -1247,8 +1247,8 @@ fn render_hemicubes(
 #[cfg(test)]
 mod layout_tests {
     use super::*;
-    use crate::gpu::mirror::assert_mirrors;
     use crate::gpu::Shader;
+    use crate::gpu::mirror::assert_mirrors;
 
     #[test]
     fn the_bounce_structs_mirror_common_wgsl() {
@@ -1275,7 +1275,19 @@ mod layout_tests {
         assert_mirrors!(
             Shader::SolveShoot,
             "Shooter",
-            Shooter { position, area, normal, patch_index, radiance, radius, rect_centre, lift, half_u, rect_area, half_v }
+            Shooter {
+                position,
+                area,
+                normal,
+                patch_index,
+                radiance,
+                radius,
+                rect_centre,
+                lift,
+                half_u,
+                rect_area,
+                half_v
+            }
         );
         assert_mirrors!(Shader::SolveHemicube, "HemicubeFace", HemicubeFace { position, lift, normal, face });
         assert_mirrors!(Shader::SolveSelect, "BounceStats", GpuStats { unshot, received, shot, shooters, landing });

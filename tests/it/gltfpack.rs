@@ -33,9 +33,10 @@ fn gltfpack(input: &Path, dir: &Path, name: &str, flags: &[&str]) -> PathBuf {
     output
 }
 
-/// Bakes `input` at 128² under the sun-and-sky fixture; returns its report.
+/// Bakes `input` at 128² under the sun-and-sky fixture, 256 shots of bounced
+/// light (the files are compared, not convergence); returns its report.
 fn bake(input: &Path, out: &Path) -> Report {
-    common::bake_file(input, out, &["--max-atlas-size", "128", "--lights", "128", "-q"])
+    common::bake_file(input, out, &["--max-atlas-size", "128", "--lights", "128", "--max-shots", "256", "-q"])
 }
 
 /// Each primitive's (texels, mean L_lm), in report order.

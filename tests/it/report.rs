@@ -53,8 +53,10 @@ fn schema_errors(reports: &[&Value]) -> Vec<Vec<String>> {
         std::fs::write(file, serde_json::to_vec(report).unwrap()).unwrap();
     }
     let schema = Path::new(env!("CARGO_MANIFEST_DIR")).join("schema/report.schema.json");
-    let args: Vec<&std::ffi::OsStr> = std::iter::once(schema.as_os_str()).chain(files.iter().map(|f| f.as_os_str())).collect();
-    let found: serde_json::Map<String, Value> = serde_json::from_str(&common::node("pipeline/schema.mjs", &args)).unwrap();
+    let args: Vec<&std::ffi::OsStr> =
+        std::iter::once(schema.as_os_str()).chain(files.iter().map(|f| f.as_os_str())).collect();
+    let found: serde_json::Map<String, Value> =
+        serde_json::from_str(&common::node("pipeline/schema.mjs", &args)).unwrap();
     let messages = |file: &std::path::PathBuf| -> Vec<String> {
         let list = found[file.to_str().unwrap()].as_array().expect("a list per file");
         list.iter().map(|m| m.as_str().unwrap().to_string()).collect()
