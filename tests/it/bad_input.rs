@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use crate::common::fixture;
+use crate::common::{self, fixture};
 use bake::environment::{EnvironmentMap, ExrPrecision};
 use bake::report::Report;
 use serde_json::{Value, json};
@@ -65,7 +65,7 @@ impl Case {
 
     /// Runs `bake ARGS -o out -q` with a small atlas and light budget unless ARGS set them.
     fn run(&self, args: &[&str]) -> Output {
-        let mut command = Command::new(env!("CARGO_BIN_EXE_bake"));
+        let mut command = common::bake_command();
         command.current_dir(self.dir.path()).args(args).args(["-o", "out", "-q"]);
         for default in [["--max-atlas-size", "32"], ["--lights", "16"], ["--max-shots", "64"]] {
             if !args.contains(&default[0]) {
@@ -796,7 +796,7 @@ fn image_headers_declaring_more_than_the_file_holds_are_refused_before_allocatin
     let exr = exr_declaring(&case, 65536, 32768);
     std::fs::write(out.path().join("sphere_on_ground.lightmap0.exr"), exr).unwrap();
     let output = finish({
-        let mut command = Command::new(env!("CARGO_BIN_EXE_bake"));
+        let mut command = common::bake_command();
         command.arg("check").arg(out.path().join("report.json"));
         command
     });
@@ -864,7 +864,7 @@ fn a_density_that_yields_no_texels_is_a_user_error() {
 /// `bake check` of `out`'s report: its exit code and stdout + stderr.
 fn check(out: &Path) -> (Option<i32>, String) {
     let output = finish({
-        let mut command = Command::new(env!("CARGO_BIN_EXE_bake"));
+        let mut command = common::bake_command();
         command.arg("check").arg(out.join("report.json"));
         command
     });
@@ -949,7 +949,7 @@ fn staging_folders_are_removed_on_a_signal_and_stale_ones_on_the_next_run() {
     // An existing output folder holds the staging folder.
     std::fs::create_dir(case.path("out")).unwrap();
     for signal in ["INT", "TERM"] {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_bake"))
+        let mut child = common::bake_command()
             .current_dir(case.path(""))
             .args(["scene.glb", "--env", env.to_str().unwrap(), "-o", "out", "-q", "--max-atlas-size", "256"])
             .spawn()
@@ -1116,7 +1116,7 @@ fn check_reads_a_large_golden_report_in_bounded_memory() {
     let bytes = serde_json::to_vec_pretty(&golden).unwrap();
     drop(golden);
     std::fs::write(out.path().join("golden.json"), &bytes).unwrap();
-    let mut command = Command::new(env!("CARGO_BIN_EXE_bake"));
+    let mut command = common::bake_command();
     command.current_dir(out.path()).args(["check", "report.json", "--against", "golden.json"]);
     // Read whole and parsed into a JSON tree, it took 4 times the file (1.2 GB for 285 MB);
     // streamed, it needs less than the file's size.

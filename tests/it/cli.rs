@@ -3,9 +3,9 @@
 //! bad inputs give one-line errors naming the file, exit code 2, and leave
 //! no output behind.
 
-use std::process::{Command, Output};
+use std::process::Output;
 
-use crate::common::{fixture, run_bake as bake, stderr};
+use crate::common::{self, fixture, run_bake as bake, stderr};
 use bake::report::Report;
 
 /// The run failed with exit code 2 and exactly one error line mentioning `needle`.
@@ -123,7 +123,7 @@ fn a_failed_run_keeps_the_previous_outputs() {
 
 #[test]
 fn help_explains_every_option() {
-    let output = Command::new(env!("CARGO_BIN_EXE_bake")).arg("--help").output().unwrap();
+    let output = common::bake_command().arg("--help").output().unwrap();
     let help = String::from_utf8_lossy(&output.stdout);
     for option in [
         "--env",
@@ -202,8 +202,7 @@ fn a_scene_lit_by_its_own_lamps_bakes_without_an_environment_and_keeps_its_energ
     assert!(punctual.power_received[0] > 0.0 && scene.bounce.is_some());
     assert!(scene.notices.iter().any(|n| n.contains("1 punctual light(s) (KHR_lights_punctual) are baked")));
     // The energy balance counts the lamp's light as direct light.
-    let checked =
-        Command::new(env!("CARGO_BIN_EXE_bake")).current_dir(dir.path()).args(["check", "out/report.json"]).output();
+    let checked = common::bake_command().current_dir(dir.path()).args(["check", "out/report.json"]).output();
     let checked = checked.unwrap();
     assert!(checked.status.success(), "{}", String::from_utf8_lossy(&checked.stdout));
 

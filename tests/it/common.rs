@@ -107,9 +107,28 @@ pub fn read_exr(path: &Path) -> (usize, Vec<[f32; 3]>) {
     exr.layer_data.channel_data.pixels
 }
 
+/// The bake binary as a command, for the tests that set more than arguments.
+pub fn bake_command() -> std::process::Command {
+    std::process::Command::new(env!("CARGO_BIN_EXE_bake"))
+}
+
 /// Runs the bake binary in `dir` with `args`.
 pub fn run_bake(dir: &Path, args: &[&str]) -> std::process::Output {
-    std::process::Command::new(env!("CARGO_BIN_EXE_bake")).current_dir(dir).args(args).output().expect("bake runs")
+    bake_command().current_dir(dir).args(args).output().expect("bake runs")
+}
+
+/// A tiny bake of `input` into `out` under the sun-and-sky fixture (64²,
+/// 64 lights, 64 shots) with `extra`, for the tests that check the files,
+/// not the light.
+pub fn tiny_bake(input: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    let env = repo("fixtures/sky_sun.exr");
+    bake_command()
+        .arg(input)
+        .args(["--env".as_ref(), env.as_os_str(), "-o".as_ref(), out.as_os_str()])
+        .args(["--max-atlas-size", "64", "--lights", "64", "--max-shots", "64", "-q"])
+        .args(extra)
+        .output()
+        .expect("bake runs")
 }
 
 /// A run's stderr as text.
@@ -143,7 +162,7 @@ pub fn node(script: &str, args: &[&std::ffi::OsStr]) -> String {
 /// into `out`; fails the test on a failed bake, else returns its report.
 pub fn bake_file(input: &Path, out: &Path, args: &[&str]) -> bake::report::Report {
     let env = repo("fixtures/sky_sun.exr");
-    let output = std::process::Command::new(env!("CARGO_BIN_EXE_bake"))
+    let output = bake_command()
         .arg(input)
         .args(["--env".as_ref(), env.as_os_str(), "-o".as_ref(), out.as_os_str()])
         .args(args)

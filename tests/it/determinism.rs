@@ -1,21 +1,12 @@
 //! The same inputs and options give byte-identical output files on the same
 //! adapter: the bake (direct light and bounces) and every file export writes.
 
+use crate::common;
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::process::Command;
 
 fn bake(out: &Path, format: &str) -> BTreeMap<String, Vec<u8>> {
-    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures");
-    let output = Command::new(env!("CARGO_BIN_EXE_bake"))
-        .arg(fixtures.join("everything.glb"))
-        .arg("--env")
-        .arg(fixtures.join("sky_sun.exr"))
-        .arg("-o")
-        .arg(out)
-        .args(["--max-atlas-size", "64", "--lights", "64", "--max-shots", "64", "--format", format, "-q"])
-        .output()
-        .expect("bake runs");
+    let output = common::tiny_bake(&common::fixture("everything.glb"), out, &["--format", format]);
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     std::fs::read_dir(out)
         .unwrap()

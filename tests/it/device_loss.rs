@@ -9,10 +9,10 @@
 //! after `--gpu-timeout` and ends the same way.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 use std::time::{Duration, Instant};
 
-use crate::common::fixture;
+use crate::common::{self, fixture};
 use bake::fixtures::{MeshData, Placement, SceneBuilder};
 use bake::gpu::LOSE_DEVICE_HOOK;
 
@@ -29,7 +29,7 @@ struct Run {
 /// set them) in `dir`, with the device lost at `lose_at` if given; fails the
 /// test if it hangs.
 fn bake(dir: &Path, args: &[&str], out: &Path, lose_at: Option<&str>) -> Run {
-    let mut command = Command::new(env!("CARGO_BIN_EXE_bake"));
+    let mut command = common::bake_command();
     command.current_dir(dir).args(args).arg("-o").arg(out).arg("-q");
     for default in [["--max-atlas-size", "64"], ["--lights", "32"], ["--max-shots", "256"]] {
         if !args.contains(&default[0]) {

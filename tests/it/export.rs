@@ -9,21 +9,16 @@
 
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
-use crate::common::{fixture, read_exr};
+use crate::common::{self, fixture, read_exr};
 use bake::asset::{SourceAsset, accessor};
 use bake::report::Report;
 use serde_json::{Value, json};
 
 /// Runs a tiny bake of `input` under the sun-and-sky fixture into `out`.
 fn bake(input: &Path, out: &Path, extra: &[&str]) -> Output {
-    let env = fixture("sky_sun.exr");
-    let mut args = vec![input.as_os_str(), "--env".as_ref(), env.as_os_str(), "-o".as_ref(), out.as_os_str()];
-    for arg in ["--max-atlas-size", "64", "--lights", "64", "--max-shots", "64", "-q"].iter().chain(extra) {
-        args.push(arg.as_ref());
-    }
-    Command::new(env!("CARGO_BIN_EXE_bake")).args(&args).output().expect("bake runs")
+    common::tiny_bake(input, out, extra)
 }
 
 fn bake_ok(input: &Path, out: &Path, extra: &[&str]) {

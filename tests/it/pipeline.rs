@@ -4,13 +4,11 @@
 //! bakes both again when the options change, and its `golden` and `check`
 //! targets run `bake check` against the golden reports.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 use std::time::{Duration, SystemTime};
 
-fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
-}
+use crate::common::repo;
 
 const OPTIONS: &str = "--max-atlas-size 64 --lights 64 --max-shots 64";
 

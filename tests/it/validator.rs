@@ -7,26 +7,19 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use bake::fixtures::{MeshData, Placement, SceneBuilder};
+use crate::common;
 
-fn repo() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
+use bake::fixtures::{MeshData, Placement, SceneBuilder};
 
 /// Tiny bakes: what is checked here is the file, not the light.
 fn bake(input: &Path, out: &Path, extra: &[&str]) {
-    let env = repo().join("fixtures/sky_sun.exr");
-    let mut args = vec![input.as_os_str(), "--env".as_ref(), env.as_os_str(), "-o".as_ref(), out.as_os_str()];
-    for arg in ["--max-atlas-size", "64", "--lights", "64", "--max-shots", "64", "-q"].iter().chain(extra) {
-        args.push(arg.as_ref());
-    }
-    let output = Command::new(env!("CARGO_BIN_EXE_bake")).args(&args).output().expect("bake runs");
+    let output = common::tiny_bake(input, out, extra);
     assert!(output.status.success(), "bake {}: {}", input.display(), String::from_utf8_lossy(&output.stderr));
 }
 
 /// The validator's report on `file`: (errors, warnings, every message as one line).
 fn validate(file: &Path) -> (u64, u64, Vec<String>) {
-    let script = repo().join("pipeline/validate.mjs");
+    let script = common::repo("pipeline/validate.mjs");
     let output =
         Command::new("node").arg(&script).arg(file).output().unwrap_or_else(|e| {
             panic!("cannot run node ({e}): the glTF validator needs Node.js; run ./pipeline/setup.sh")
@@ -68,7 +61,7 @@ fn assert_valid(file: &Path) {
 }
 
 fn fixture_scenes() -> Vec<PathBuf> {
-    let mut scenes: Vec<PathBuf> = std::fs::read_dir(repo().join("fixtures"))
+    let mut scenes: Vec<PathBuf> = std::fs::read_dir(common::repo("fixtures"))
         .unwrap()
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|e| e == "glb" || e == "gltf"))
@@ -108,7 +101,7 @@ fn the_engine_material_form_passes_the_validator() {
     let dir = tempfile::tempdir().unwrap();
     for stem in ["everything", "sphere_on_ground"] {
         let out = dir.path().join(stem);
-        bake(&repo().join(format!("fixtures/{stem}.glb")), &out, &["--material", "engine"]);
+        bake(&common::fixture(&format!("{stem}.glb")), &out, &["--material", "engine"]);
         assert_valid(&out.join(format!("{stem}.glb")));
     }
 }
