@@ -168,7 +168,7 @@ fn a_file_with_ktx2_textures_bakes_into_a_valid_file_that_keeps_them() {
 
 #[test]
 fn broken_ktx2_files_are_errors_not_crashes() {
-    const ATTEMPTS: usize = 100_000;
+    const ATTEMPTS: usize = 20_000;
     let dir = tempfile::tempdir().unwrap();
     let mut decoded = 0;
     for codec in ["etc1s", "uastc"] {

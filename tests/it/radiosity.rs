@@ -193,6 +193,10 @@ fn a_floor_laid_twice_or_just_over_itself_glows_and_reflects_once() {
     // 0.6 % dark.
     let rho = 0.8f32;
     let expected = 1.0 / (1.0 - rho as f64);
+    // Bounded, the ambient term standing in for the light not yet shot: at
+    // 6,000 shots every surface's mean was within 0.5 % of Le/(1 − ρ) (at
+    // convergence, 13,184 shots, within 0.4 %).
+    let shots = 6_000;
     for lift in [0.0f32, 0.01] {
         let mut builder = room([(rho, 1.0); 6]);
         builder.object(
@@ -202,7 +206,7 @@ fn a_floor_laid_twice_or_just_over_itself_glows_and_reflects_once() {
             [1.0; 3],
             Placement::at(Vec3::new(0.0, -1.0 + lift, 0.0)),
         );
-        let baked = bake_emitters(&builder, 96, |_| {});
+        let baked = bake_emitters(&builder, 96, |o| o.solve.bounce.max_shots = Some(shots));
         let texel_size = 1.0 / baked.atlas.texels_per_unit;
         assert!(lift < 0.25 * texel_size, "the lift, {lift} m, is under a texel of {texel_size} m");
         // In the room's floor's plane, both floors are seen; over it, the room's floor is hidden.
