@@ -7,7 +7,8 @@
 //! ```
 //! The target is a `report.json`, or a baked `.glb`/`.gltf` whose run's
 //! `report.json` lies beside it (then only that scene is checked). Lightmap
-//! EXRs found beside the report are re-read and their texels checked too.
+//! EXRs found beside the report are re-read and their texels checked too,
+//! and each KTX2 lightmap against its EXR.
 //!
 //! Exit codes: 0 every check passed, 1 a figure moved beyond the tolerance or
 //! an invariant does not hold (a readable table on stdout says which), 2 the
@@ -285,21 +286,7 @@ pub fn run(options: &CheckOptions) -> Result<Findings> {
         findings.scenes += 1;
         findings.primitives += scene.energy.len();
         findings.violations.extend(invariants(scene));
-        let dir = report_path.parent().unwrap_or(Path::new("."));
-        let lightmap = dir.join(format!("{}.lightmap{}.exr", scene.name, scene.atlas.index));
-        // A bake writes every scene's lightmap beside its report: one that is
-        // gone, or is no file, is a failed check, never a pass unchecked.
-        let missing = |message: String| Violation { scene: scene.name.clone(), message };
-        match crate::files::open(&lightmap) {
-            Ok((file, length)) => {
-                findings.violations.extend(lightmap_violations(&lightmap, file, length, scene)?);
-                findings.lightmaps.push(lightmap);
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-                findings.violations.push(missing(format!("lightmap '{}' is missing", lightmap.display())));
-            }
-            Err(e) => findings.violations.push(missing(format!("lightmap '{}': {e}", lightmap.display()))),
-        }
+        check_lightmap_files(report_path.parent().unwrap_or(Path::new(".")), scene, &mut findings)?;
     }
     if let Some(env) = &report.environment {
         for c in 0..3 {
@@ -555,21 +542,84 @@ pub fn energy_balance(scene: &SceneReport) -> Result<Balance, String> {
     Ok(balance)
 }
 
-/// Re-reads a lightmap EXR and checks its texels: none NaN, infinite or
-/// negative (each named with the meshes whose texel rectangle holds it), the
-/// size the report says, and every covered texel written: at least as many
-/// non-zero texels and as much Σ L_lm as the covered texels hold (dilation
-/// only adds texels outside the charts).
+/// Re-reads the scene's lightmap files beside its report, the EXR and the
+/// KTX2. A bake writes both for every scene: one that is gone, or is no
+/// file, is a failed check, never a pass unchecked.
+fn check_lightmap_files(dir: &Path, scene: &SceneReport, findings: &mut Findings) -> Result<()> {
+    let path = |extension: &str| dir.join(format!("{}.lightmap{}.{extension}", scene.name, scene.atlas.index));
+    let unreadable = |path: &Path, e: std::io::Error| Violation {
+        scene: scene.name.clone(),
+        message: match e.kind() {
+            std::io::ErrorKind::NotFound => format!("lightmap '{}' is missing", path.display()),
+            _ => format!("lightmap '{}': {e}", path.display()),
+        },
+    };
+    let exr = path("exr");
+    let (file, length) = match crate::files::open(&exr) {
+        Ok(opened) => opened,
+        Err(e) => {
+            findings.violations.push(unreadable(&exr, e));
+            return Ok(());
+        }
+    };
+    let (width, pixels) = read_lightmap_exr(&exr, file, length)?;
+    findings.violations.extend(texel_violations(&exr, width, &pixels, scene));
+    findings.lightmaps.push(exr);
+    let ktx2 = path("ktx2");
+    match crate::files::read(&ktx2) {
+        Ok(bytes) => {
+            findings.violations.extend(ktx2_violations(&ktx2, &bytes, &pixels, scene));
+            findings.lightmaps.push(ktx2);
+        }
+        Err(e) => findings.violations.push(unreadable(&ktx2, e)),
+    }
+    Ok(())
+}
+
+/// The KTX2 lightmap against the EXR's texels `exr`: the atlas's size, and
+/// every texel the EXR's packed as E5B9G9R9, bit for bit (a bake writes both
+/// from the same values).
+fn ktx2_violations(path: &Path, bytes: &[u8], exr: &[[f32; 3]], scene: &SceneReport) -> Vec<Violation> {
+    use crate::export::ktx2::{decode, pack_e5b9g9r9, unpack_e5b9g9r9};
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let say = |message: String| vec![Violation { scene: scene.name.clone(), message: format!("{name}: {message}") }];
+    let (width, height, texels) = match decode(bytes, exr.len() as u64) {
+        Ok(decoded) => decoded,
+        Err(e) => return say(format!("{e:#}")),
+    };
+    if (width, height) != (scene.atlas.width, scene.atlas.height) || texels.len() != exr.len() {
+        return say(format!("{width}×{height} but the atlas is {}×{}", scene.atlas.width, scene.atlas.height));
+    }
+    let differing: Vec<usize> = (0..exr.len()).filter(|&i| texels[i] != pack_e5b9g9r9(exr[i])).collect();
+    match differing.first() {
+        None => Vec::new(),
+        Some(&i) => say(format!(
+            "{} texels differ from the EXR's, the first at ({}, {}): {:?} where the EXR has {:?}",
+            differing.len(),
+            i as u32 % width,
+            i as u32 / width,
+            unpack_e5b9g9r9(texels[i]),
+            exr[i]
+        )),
+    }
+}
+
+/// Re-reads a lightmap EXR and checks its texels (`texel_violations`).
 /// `file` is the lightmap opened, `length` its size in bytes.
 pub fn lightmap_violations(
     path: &Path,
-    mut file: std::fs::File,
+    file: std::fs::File,
     length: u64,
     scene: &SceneReport,
 ) -> Result<Vec<Violation>> {
+    let (width, pixels) = read_lightmap_exr(path, file, length)?;
+    Ok(texel_violations(path, width, &pixels, scene))
+}
+
+/// A lightmap EXR's texels, row by row from the top, with its width.
+fn read_lightmap_exr(path: &Path, mut file: std::fs::File, length: u64) -> Result<(usize, Vec<[f32; 3]>)> {
     use exr::prelude::*;
     use std::io::{Seek, SeekFrom};
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let cannot_read = || format!("lightmap '{}': cannot read", path.display());
     crate::environment::check_exr_size(&file, length).map_err(|e| anyhow::anyhow!("{e}")).with_context(cannot_read)?;
     file.seek(SeekFrom::Start(0)).with_context(cannot_read)?;
@@ -584,13 +634,22 @@ pub fn lightmap_violations(
         .all_attributes()
         .from_buffered(std::io::BufReader::new(file))
         .with_context(cannot_read)?;
-    let (width, pixels) = image.layer_data.channel_data.pixels;
+    Ok(image.layer_data.channel_data.pixels)
+}
+
+/// A lightmap's texels checked: none NaN, infinite or negative (each named
+/// with the meshes whose texel rectangle holds it), the size the report says,
+/// and every covered texel written: at least as many non-zero texels and as
+/// much Σ L_lm as the covered texels hold (dilation only adds texels outside
+/// the charts).
+fn texel_violations(path: &Path, width: usize, pixels: &[[f32; 3]], scene: &SceneReport) -> Vec<Violation> {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let height = pixels.len().checked_div(width).unwrap_or(0);
     let mut out = Vec::new();
     let mut say = |message: String| out.push(Violation { scene: scene.name.clone(), message });
     if (width as u32, height as u32) != (scene.atlas.width, scene.atlas.height) {
         say(format!("{name} is {width}×{height} but the atlas is {}×{}", scene.atlas.width, scene.atlas.height));
-        return Ok(out);
+        return out;
     }
     let mut bad = Vec::new();
     let mut nonzero = 0usize;
@@ -638,5 +697,5 @@ pub fn lightmap_violations(
             "{name}: holds Σ L_lm = {sum:.6e} (luminance) but its covered texels {covered_sum:.6e}: some were not written"
         ));
     }
-    Ok(out)
+    out
 }

@@ -191,7 +191,7 @@ pub enum Command {
     ///
     /// TARGET is a bake's report.json, or a baked .glb/.gltf whose run's report.json lies beside
     /// it (then only that scene is checked). Lightmap EXRs beside the report are re-read and
-    /// their texels checked too. Without --against, only the invariants are checked: no NaN,
+    /// their texels checked too, and each KTX2 against its EXR. Without --against, only the invariants are checked: no NaN,
     /// infinite or negative texel, every covered texel written, reflected power within received
     /// power times albedo, emitted power accounted for.
     ///

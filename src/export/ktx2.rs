@@ -109,6 +109,39 @@ fn key_value_data(entries: &[(&str, &str)]) -> Vec<u8> {
     bytes
 }
 
+/// The E5B9G9R9 texels of a KTX2 file as [`encode`] writes it, row by row
+/// from the top, with its width and height; for any other kind of file an
+/// error that says what differs. Decompresses at most `max_texels` texels.
+pub fn decode(bytes: &[u8], max_texels: u64) -> Result<(u32, u32, Vec<u32>)> {
+    use std::io::Read;
+    let reader = ::ktx2::Reader::new(bytes).map_err(|e| anyhow!("not a KTX2 file ({e:?})"))?;
+    let header = reader.header();
+    ensure!(header.format == Some(Format::E5B9G9R9_UFLOAT_PACK32), "its format is {:?}, not E5B9G9R9", header.format);
+    ensure!(
+        header.supercompression_scheme == Some(SupercompressionScheme::Zstandard),
+        "its level is not Zstandard-supercompressed"
+    );
+    ensure!(
+        (header.pixel_depth, header.layer_count, header.face_count, header.level_count) == (0, 0, 1, 1),
+        "it is not one level of one 2D image"
+    );
+    let texels = u64::from(header.pixel_width) * u64::from(header.pixel_height);
+    ensure!(texels <= max_texels, "it declares {texels} texels, more than the {max_texels} expected");
+    let level = reader.levels().next().ok_or_else(|| anyhow!("it has no level"))?;
+    let decoder = ruzstd::decoding::StreamingDecoder::new(level.data)
+        .map_err(|e| anyhow!("its level is not a Zstandard frame ({e})"))?;
+    let mut data = Vec::new();
+    decoder.take(texels * 4 + 1).read_to_end(&mut data).map_err(|e| anyhow!("its level does not decompress ({e})"))?;
+    ensure!(
+        data.len() as u64 == texels * 4,
+        "its level holds {} bytes, not the {} of its texels",
+        data.len(),
+        texels * 4
+    );
+    let texels = data.chunks_exact(4).map(|t| u32::from_le_bytes([t[0], t[1], t[2], t[3]])).collect();
+    Ok((header.pixel_width, header.pixel_height, texels))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

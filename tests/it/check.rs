@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use crate::common::{fixture, run_bake as run};
+use crate::common::{self, fixture, run_bake as run};
 use serde_json::Value;
 
 fn check(dir: &Path, args: &[&str]) -> (Option<i32>, String) {
@@ -75,7 +75,7 @@ fn a_report_passes_against_itself() {
     let (code, text) = check(dir.path(), &["out/report.json", "--against", "out/report.json"]);
     assert_eq!(code, Some(0), "{text}");
     assert!(text.starts_with("PASS: 1 scene(s), 2 mesh(es)"), "{text}");
-    assert!(text.contains("1 lightmap file(s) read"), "the EXR beside the report was checked: {text}");
+    assert!(text.contains("2 lightmap file(s) read"), "the EXR and the KTX2 beside the report were checked: {text}");
     // The same through the baked GLB, and with the invariants alone.
     assert_eq!(check(dir.path(), &["out/sphere_on_ground.glb", "--against", "out/report.json"]).0, Some(0));
     assert_eq!(check(dir.path(), &["out/sphere_on_ground.glb"]).0, Some(0));
@@ -166,6 +166,43 @@ fn a_nan_texel_fails_with_the_mesh_named() {
     assert_eq!(code, Some(1), "{text}");
     assert!(text.contains("invariant: sphere_on_ground: mesh sphere#0: 1 of its"), "{text}");
     assert!(text.contains("NaN, infinite or negative"), "{text}");
+}
+
+#[test]
+fn a_ktx2_lightmap_unlike_its_exr_fails() {
+    // The KTX2 holds the EXR's texels packed as E5B9G9R9, bit for bit: one
+    // texel changed, the whole map times pi, another size, a damaged file or
+    // none at all each fail the check, naming the file.
+    let dir = tempfile::tempdir().unwrap();
+    bake_fixture(dir.path());
+    let ktx2_path = dir.path().join("out/sphere_on_ground.lightmap0.ktx2");
+    let original = std::fs::read(&ktx2_path).unwrap();
+    let (width, pixels) = common::read_exr(&dir.path().join("out/sphere_on_ground.lightmap0.exr"));
+    let height = pixels.len() / width;
+    let lit = pixels.iter().position(|p| p[0] > 0.0).expect("a lit texel");
+    let mut one_texel = pixels.clone();
+    one_texel[lit][0] *= 1.01;
+    let times_pi: Vec<[f32; 3]> = pixels.iter().map(|p| p.map(|c| c * std::f32::consts::PI)).collect();
+    let encode = |w: usize, h: usize, p: &[[f32; 3]]| bake::export::ktx2::encode(w as u32, h as u32, p).unwrap();
+    let cases: [(&str, Option<Vec<u8>>, &str); 5] = [
+        ("one texel", Some(encode(width, height, &one_texel)), "1 texels differ from the EXR's"),
+        ("times pi", Some(encode(width, height, &times_pi)), "texels differ from the EXR's"),
+        ("a row short", Some(encode(width, height - 1, &pixels[width..])), "but the atlas is"),
+        ("cut short", Some(original[..original.len() / 2].to_vec()), "sphere_on_ground.lightmap0.ktx2: "),
+        ("gone", None, "is missing"),
+    ];
+    let (code, text) = check(dir.path(), &["out/report.json"]);
+    assert_eq!(code, Some(0), "the bake as written: {text}");
+    for (what, bytes, needle) in cases {
+        match bytes {
+            Some(bytes) => std::fs::write(&ktx2_path, bytes).unwrap(),
+            None => std::fs::remove_file(&ktx2_path).unwrap(),
+        }
+        let (code, text) = check(dir.path(), &["out/report.json"]);
+        assert_eq!(code, Some(1), "{what}: {text}");
+        let line = text.lines().find(|l| l.contains("lightmap0.ktx2")).unwrap_or_else(|| panic!("{what}: {text}"));
+        assert!(line.contains(needle), "{what}: {line}");
+    }
 }
 
 #[test]
