@@ -566,14 +566,36 @@ fn check_lightmap_files(dir: &Path, scene: &SceneReport, findings: &mut Findings
     findings.violations.extend(texel_violations(&exr, width, &pixels, scene));
     findings.lightmaps.push(exr);
     let ktx2 = path("ktx2");
-    match crate::files::read(&ktx2) {
-        Ok(bytes) => {
-            findings.violations.extend(ktx2_violations(&ktx2, &bytes, &pixels, scene));
+    match crate::files::open(&ktx2) {
+        Ok((file, length)) => {
+            findings.violations.extend(ktx2_file_violations(&ktx2, file, length, &pixels, scene)?);
             findings.lightmaps.push(ktx2);
         }
         Err(e) => findings.violations.push(unreadable(&ktx2, e)),
     }
     Ok(())
+}
+
+/// Reads the KTX2 lightmap opened as `file` (`length` bytes) and checks it
+/// against the EXR's texels (`ktx2_violations`). Zstandard stores data that
+/// does not shrink as raw blocks, a few bytes over the data; a file larger
+/// than that for the EXR's texels is refused unread.
+fn ktx2_file_violations(
+    path: &Path,
+    file: std::fs::File,
+    length: u64,
+    exr: &[[f32; 3]],
+    scene: &SceneReport,
+) -> Result<Vec<Violation>> {
+    use std::io::Read;
+    let most = exr.len() as u64 * 4 + 64 * 1024;
+    if length > most {
+        let message = format!("lightmap '{}' is {length} bytes, more than {most} for its texels", path.display());
+        return Ok(vec![Violation { scene: scene.name.clone(), message }]);
+    }
+    let mut bytes = Vec::with_capacity(length as usize);
+    file.take(length).read_to_end(&mut bytes).with_context(|| format!("lightmap '{}': cannot read", path.display()))?;
+    Ok(ktx2_violations(path, &bytes, exr, scene))
 }
 
 /// The KTX2 lightmap against the EXR's texels `exr`: the atlas's size, and

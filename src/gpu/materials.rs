@@ -176,7 +176,7 @@ fn mip_chain(image: &LinearImage, size: u32) -> Vec<ImageBuffer<Rgba<f32>, Vec<f
 }
 
 #[cfg(test)]
-mod layout_tests {
+mod tests {
     use super::*;
     use crate::gpu::Shader;
     use crate::gpu::mirror::assert_mirrors;

@@ -1245,7 +1245,7 @@ fn render_hemicubes(
 }
 
 #[cfg(test)]
-mod layout_tests {
+mod tests {
     use super::*;
     use crate::gpu::Shader;
     use crate::gpu::mirror::assert_mirrors;

@@ -171,8 +171,8 @@ fn a_nan_texel_fails_with_the_mesh_named() {
 #[test]
 fn a_ktx2_lightmap_unlike_its_exr_fails() {
     // The KTX2 holds the EXR's texels packed as E5B9G9R9, bit for bit: one
-    // texel changed, the whole map times pi, another size, a damaged file or
-    // none at all each fail the check, naming the file.
+    // texel changed, the whole map times pi, another size, a damaged or huge
+    // file or none at all each fail the check, naming the file.
     let dir = tempfile::tempdir().unwrap();
     bake_fixture(dir.path());
     let ktx2_path = dir.path().join("out/sphere_on_ground.lightmap0.ktx2");
@@ -184,11 +184,12 @@ fn a_ktx2_lightmap_unlike_its_exr_fails() {
     one_texel[lit][0] *= 1.01;
     let times_pi: Vec<[f32; 3]> = pixels.iter().map(|p| p.map(|c| c * std::f32::consts::PI)).collect();
     let encode = |w: usize, h: usize, p: &[[f32; 3]]| bake::export::ktx2::encode(w as u32, h as u32, p).unwrap();
-    let cases: [(&str, Option<Vec<u8>>, &str); 5] = [
+    let cases: [(&str, Option<Vec<u8>>, &str); 6] = [
         ("one texel", Some(encode(width, height, &one_texel)), "1 texels differ from the EXR's"),
         ("times pi", Some(encode(width, height, &times_pi)), "texels differ from the EXR's"),
         ("a row short", Some(encode(width, height - 1, &pixels[width..])), "but the atlas is"),
         ("cut short", Some(original[..original.len() / 2].to_vec()), "sphere_on_ground.lightmap0.ktx2: "),
+        ("too large to be its texels", Some(vec![0; 4 * pixels.len() + (65 << 10)]), "bytes, more than"),
         ("gone", None, "is missing"),
     ];
     let (code, text) = check(dir.path(), &["out/report.json"]);

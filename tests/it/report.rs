@@ -38,9 +38,10 @@ fn bake_small(dir: &Path, name: &str, extra: &[&str]) -> Output {
     output
 }
 
+const SCHEMA: &str = "schema/report.schema.json";
+
 fn schema() -> Value {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("schema/report.schema.json");
-    serde_json::from_slice(&std::fs::read(path).unwrap()).expect("the schema is JSON")
+    serde_json::from_slice(&std::fs::read(common::repo(SCHEMA)).unwrap()).expect("the schema is JSON")
 }
 
 /// What Ajv (pipeline/schema.mjs) finds wrong in each of `reports` against
@@ -52,7 +53,7 @@ fn schema_errors(reports: &[&Value]) -> Vec<Vec<String>> {
     for (file, report) in files.iter().zip(reports) {
         std::fs::write(file, serde_json::to_vec(report).unwrap()).unwrap();
     }
-    let schema = Path::new(env!("CARGO_MANIFEST_DIR")).join("schema/report.schema.json");
+    let schema = common::repo(SCHEMA);
     let args: Vec<&std::ffi::OsStr> =
         std::iter::once(schema.as_os_str()).chain(files.iter().map(|f| f.as_os_str())).collect();
     let found: serde_json::Map<String, Value> =
