@@ -265,10 +265,10 @@ fn cone_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers, wa
         // After the first rays, on to the rest only in a penumbra.
         let split = open != 0u && open != leaving;
         count = select(count, l.rays, j + 1u == FIRST_RAYS && split);
-        // None left the face: the rest of the rays, then the sliver's.
+        // None left the face: the rest of the rays, then the sliver's, once
+        // (it may graze the face and not leave it either).
         let last = j + 1u == count;
         count = select(count, select(l.rays, l.rays + 1u, count == l.rays), last && leaving == 0u && j < l.rays);
-        j = select(j, l.rays - 1u, last && leaving == 0u && count == l.rays + 1u);
     }
     return select(f32(open) / f32(leaving), 0.0, leaving == 0u);
 }

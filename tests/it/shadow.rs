@@ -292,3 +292,56 @@ fn wide_sun_penumbra_errors(gpu: &Gpu, blocker: &MeshData, thickness: f32, flip:
     assert!(all.len() >= 100, "only {} texels in the penumbra", all.len());
     (mean_all, mean_inner)
 }
+
+/// Lights whose cone reaches above a tilted ground by no more than a
+/// rounding error, beside a blocker: none of a light's rays leaves the
+/// face, and often neither does the last one, aimed just over the horizon
+/// (its rounding differs from the test that let the light in). The pass must
+/// still end, though a GPU has no loop limit to stop it, and the ground gets
+/// the nothing such a light gives it.
+#[test]
+fn lights_grazing_the_horizon_by_a_rounding_error_end_their_rays() {
+    let gpu = common::gpu();
+    // Tilted, so that the face normal is not an axis and roundings vary.
+    let turn = Quat::from_euler(glam::EulerRot::XYZ, 0.3, 0.7, 0.2);
+    let mut builder = SceneBuilder::new();
+    builder.object(
+        "ground",
+        &MeshData::plane(6.0, 6.0, 4),
+        [0.5, 0.5, 0.5, 1.0],
+        [0.0; 3],
+        Placement::default().rotated(turn),
+    );
+    // Black, so that the light it catches bounces nowhere.
+    builder.object(
+        "blocker",
+        &MeshData::cuboid([1.0, 1.0, 4.0]),
+        [0.0, 0.0, 0.0, 1.0],
+        [0.0; 3],
+        Placement::at(turn * Vec3::new(1.5, 0.5, 0.0)).rotated(turn),
+    );
+    // A cube-map texel's cone (6,144 lights), tipped so that its top edge
+    // stands a few ulps of sin α over the ground's horizon (or just under
+    // it), towards the blocker.
+    let solid_angle = 4.0 * std::f32::consts::PI / 6144.0;
+    let versine = solid_angle as f64 / std::f64::consts::TAU;
+    let sin_alpha = (versine * (2.0 - versine)).sqrt() as f32;
+    let ulp = f32::from_bits(sin_alpha.to_bits() + 1) - sin_alpha;
+    let count = 256;
+    // Each light alone would light a face square to it to E = 1.
+    let radiance = [1.0 / solid_angle; 3];
+    let mut lights = common::lights(&EnvironmentMap::horizon([1.0; 3]), LightMode::Budget { count: 1 });
+    lights.lights = (0..count)
+        .map(|k| {
+            let cos_f = -sin_alpha + (k % 7) as f32 * ulp;
+            let across = (k as f32 / count as f32 - 0.5) * 0.6;
+            let level = (1.0 - (cos_f as f64).powi(2)).sqrt() as f32;
+            let d = turn * Vec3::new(level * across.cos(), cos_f, level * across.sin());
+            Light { direction: d.normalize().to_array(), solid_angle, radiance }
+        })
+        .collect();
+    let baked = common::bake(&gpu, &builder, &lights, &common::options(128));
+    let brightest = common::values_of(&baked, 0).iter().map(|v| v.1).fold(0.0, f32::max);
+    eprintln!("{count} grazing lights: brightest ground texel {brightest:e}");
+    assert!(brightest < 1e-4, "the ground took {brightest} from lights below its horizon");
+}
