@@ -232,7 +232,10 @@ fn a_lamp_in_a_closed_room_puts_in_its_power_and_the_walls_return_the_geometric_
 #[test]
 fn spot_and_point_lights_bake_as_the_path_tracer_sees_them() {
     // A grey ground, a box and a ball under a spot and a coloured point
-    // light: the bake's direct and bounced light against the CPU reference.
+    // light: the bake's direct and bounced light against the CPU reference,
+    // away from shadow edges (a texel there holds the mean over its
+    // footprint, not the light at its centre; sampled by index stride, which
+    // texel lands on an edge changed with the adapter's rasterization).
     let mut scene = SceneBuilder::new();
     scene.object("ground", &MeshData::plane(6.0, 6.0, 4), [0.7, 0.7, 0.7, 1.0], [0.0; 3], Placement::default());
     scene.object(
@@ -258,8 +261,11 @@ fn spot_and_point_lights_bake_as_the_path_tracer_sees_them() {
         Placement::at(Vec3::new(-1.5, 1.6, -1.2)),
     );
     let baked = bake_lit_by_lamps(&scene, 128);
-    let texels: Vec<usize> =
-        (0..baked.texels.texels.len()).filter(|&i| baked.texels.texels[i].area > 0.0).step_by(41).collect();
+    let edges = across_an_edge(&baked);
+    let texels: Vec<usize> = (0..baked.texels.texels.len())
+        .filter(|&i| baked.texels.texels[i].area > 0.0 && !edges[i])
+        .step_by(41)
+        .collect();
     let options = bake::reference::ReferenceOptions { samples: 2048, ..Default::default() };
     let estimates = bake::reference::Reference::new(&baked.scene, None, &options)
         .estimate(&common::reference_points(&baked, &texels));
@@ -276,7 +282,26 @@ fn spot_and_point_lights_bake_as_the_path_tracer_sees_them() {
     eprintln!("{} texels: bias {:+.2} %, RMSE {:.2} % of the mean", texels.len(), bias * 100.0, rmse * 100.0);
     assert!(texels.len() > 200);
     assert!(bias.abs() < 0.02, "the bake's mean is {:+.2} % off the path tracer's", bias * 100.0);
-    assert!(rmse < 0.06, "RMSE {:.2} % of the mean", rmse * 100.0);
+    assert!(rmse < 0.03, "RMSE {:.2} % of the mean", rmse * 100.0);
+}
+
+/// Per texel, whether its light bends sharply across it (a shadow edge):
+/// its value is then the mean over its footprint, which a path traced from
+/// its centre does not estimate. Along an atlas row or column, its
+/// neighbours differ, or bend about it, by over a fifth of the largest of
+/// the three.
+fn across_an_edge(baked: &Baked) -> Vec<bool> {
+    let texels = &baked.texels;
+    let at: std::collections::HashMap<u32, usize> =
+        texels.texels.iter().enumerate().map(|(k, t)| (t.index, k)).collect();
+    let value = |index: u32| at.get(&index).map(|&k| baked.solution.lightmap[k][0]);
+    let edge = |(t, centre): (&bake::texelize::Texel, &[f32; 3])| {
+        [1, texels.width].iter().any(|&step| match (value(t.index.wrapping_sub(step)), value(t.index + step)) {
+            (Some(a), Some(b)) => (a - b).abs().max((a + b - 2.0 * centre[0]).abs()) > 0.2 * a.max(b).max(centre[0]),
+            _ => false,
+        })
+    };
+    texels.texels.iter().zip(&baked.solution.lightmap).map(edge).collect()
 }
 
 #[test]
