@@ -288,6 +288,44 @@ impl Bvh {
         }
     }
 
+    /// Whether some triangle comes within `radius` of `centre` on the side
+    /// `face` points to (its plane through `centre` included), allowing for
+    /// rounding. Conservative: a ray from `centre`, or from a point above it
+    /// along `face`, into that side can meet a triangle within `radius` of
+    /// `centre` only where this is true.
+    pub(crate) fn any_near_above(&self, centre: DVec3, radius: f64, face: DVec3) -> bool {
+        let Some(root) = self.nodes.first() else {
+            return false;
+        };
+        // Rounding of the scene's coordinates and the barycentric overlap
+        // of `triangle_hit`, both far under this.
+        let slack = 1e-9 * (1.0 + radius + root.lo.abs().max(root.hi.abs()).max_element());
+        let reaches = |lo: DVec3, hi: DVec3| {
+            let top = DVec3::select(face.cmpgt(DVec3::ZERO), hi, lo);
+            centre.clamp(lo, hi).distance(centre) <= radius + slack && (top - centre).dot(face) >= -slack
+        };
+        let mut stack = vec![0u32];
+        while let Some(n) = stack.pop() {
+            let node = &self.nodes[n as usize];
+            if !reaches(node.lo, node.hi) {
+                continue;
+            }
+            if node.count == 0 {
+                stack.extend([node.start, node.start + 1]);
+                continue;
+            }
+            let leaf = &self.triangles[node.start as usize..(node.start + node.count) as usize];
+            if leaf.iter().any(|t| {
+                let (lo, hi) = t.bounds();
+                let above = [t.v0, t.v0 + t.e1, t.v0 + t.e2].iter().any(|&v| (v - centre).dot(face) >= -slack);
+                above && reaches(lo, hi)
+            }) {
+                return true;
+            }
+        }
+        false
+    }
+
     /// Recursive fallback for subtrees past the explicit stack's depth.
     #[allow(clippy::too_many_arguments)]
     fn traverse_from(
@@ -353,6 +391,46 @@ mod tests {
                 }
             })
             .collect()
+    }
+
+    #[test]
+    fn nothing_near_above_means_no_short_ray_up_meets_a_triangle() {
+        let mut rng = Rng::new(&[7]);
+        let triangles = random_triangles(3000, &mut rng);
+        let bvh = Bvh::new(triangles.clone());
+        let unit =
+            |rng: &mut Rng| DVec3::new(rng.next_f64() - 0.5, rng.next_f64() - 0.5, rng.next_f64() - 0.5).normalize();
+        let (mut near, mut clear) = (0, 0);
+        for k in 0..4000 {
+            let radius = 0.2 + rng.next_f64();
+            let face = unit(&mut rng);
+            // Half the queries anywhere; half aimed: a ray from the centre
+            // along `d` meets a triangle's point at up to the full radius,
+            // up to grazing the plane of a triangle lying in it.
+            let (centre, d, face) = if k % 2 == 0 {
+                let centre = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 12.0 - 1.0;
+                (centre, unit(&mut rng), face)
+            } else {
+                let t = &triangles[(rng.next_f64() * triangles.len() as f64) as usize];
+                let (u, v) = (rng.next_f64(), rng.next_f64());
+                let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
+                let (d, face) = if k % 4 == 1 {
+                    let along = t.face.cross(unit(&mut rng)).normalize();
+                    ((along + t.face * 1e-3 * rng.next_f64()).normalize(), t.face)
+                } else {
+                    (unit(&mut rng), face)
+                };
+                (t.point(u, v) - d * radius * (1.0 - 1e-3 * rng.next_f64()), d, face)
+            };
+            let d = if d.dot(face) < 0.0 { -d } else { d };
+            let answer = bvh.any_near_above(centre, radius, face);
+            (near, clear) = if answer { (near + 1, clear) } else { (near, clear + 1) };
+            let lift = if k % 4 == 3 { 0.0 } else { 0.1 * radius * rng.next_f64() };
+            let hit = bvh.closest(centre + face * lift, d, radius - lift, None, &every_hit);
+            assert!(answer || hit.is_none(), "a ray from {centre} met a triangle the query missed");
+        }
+        // Both answers come up: the query is not trivially true.
+        assert!(near > 100 && clear > 100, "{near} near, {clear} clear");
     }
 
     #[test]

@@ -635,6 +635,12 @@ impl Occluders {
         &self.0
     }
 
+    /// Whether some triangle may come within `radius` of `centre` on the
+    /// side `face` points to (`bvh::Bvh::any_near_above`, conservative).
+    pub(crate) fn any_near_above(&self, centre: DVec3, radius: f64, face: DVec3) -> bool {
+        self.0.bvh.any_near_above(centre, radius, face)
+    }
+
     /// Whether any triangle crosses the segment from `a` to `b` (ends excluded).
     pub(crate) fn blocks(&self, a: DVec3, b: DVec3) -> bool {
         self.0.bvh.occluded(a, b - a, 1.0, None, &bvh::every_hit)

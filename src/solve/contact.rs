@@ -287,6 +287,14 @@ impl<'a> Tracer<'a> {
     /// `None` when no probe ray meets a surface within `reach`, or one meets
     /// a surface light passes.
     fn probe(&self, t: &Texel, i: usize, reach: f64) -> Option<Probe> {
+        // Every probe ray leaves `origin`, at most `lift` over this point,
+        // into the face's side: with nothing within reach there, none meets
+        // anything (most texels; the rays would say so at 17 times the cost).
+        let f = face_of(t);
+        let start = t.position().as_dvec3() + f * self.min_lift;
+        if !self.occluders.any_near_above(start, reach + self.lift, f) {
+            return None;
+        }
         let o = self.origin(t);
         let mut probe = Probe { hits: 0, nearest: f64::INFINITY, origin: o };
         for d in cosine_directions(t, PROBE_SIDE, &[i as u64, 1]) {
