@@ -237,7 +237,12 @@ fn icosphere(subdivisions: u32) -> Mesh {
 /// 20480 triangles) pushed into a lumpy, bunny-ish body (stretched, with two ear-like bulges
 /// and deterministic multi-frequency bumps), about 1 m tall, standing on y = 0.
 pub fn statue() -> Mesh {
-    let mut m = icosphere(5);
+    statue_of(5)
+}
+
+/// The statue on an icosphere of `level` subdivisions (20·4^level triangles).
+pub fn statue_of(level: u32) -> Mesh {
+    let mut m = icosphere(level);
     for p in &mut m.positions {
         let [x, y, z] = *p;
         let bumps = 0.06 * (7.0 * x + 1.3).sin() * (5.0 * y).cos() * (6.0 * z + 0.7).sin()

@@ -281,9 +281,11 @@ fn uvunwrap_valid_on_basic_scenes() {
     valid_on_basic_scenes(Backend::Uvunwrap);
 }
 
-/// The ~10k-vertex statue stand-in (xatlas takes about 10 s on it: its chart growing is slow).
+/// The ~10k-vertex statue stand-in; for xatlas, whose chart growing is
+/// slow (15 s here), the same shape at a quarter of the triangles.
 fn valid_on_statue(backend: Backend) {
-    let atlas = check_all(&[meshes::statue()], &options(backend));
+    let statue = if backend == Backend::Xatlas { meshes::statue_of(4) } else { meshes::statue() };
+    let atlas = check_all(&[statue], &options(backend));
     assert!(atlas.chart_count >= 2 && atlas.utilization > 0.4);
 }
 
