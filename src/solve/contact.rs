@@ -272,14 +272,13 @@ impl<'a> Tracer<'a> {
         }
     }
 
-    /// Where the texel's rays start: `LIFT_TEXELS` off its surface, or half
-    /// way to a surface nearer in front of it (a ring's underside 1.7 mm over
-    /// the floor: a fixed twentieth of a texel started its rays under the
-    /// floor, and a fixed thousandth let a statue's creases block rays
+    /// Where the texel's rays start, from `start`, its point `MIN_LIFT_TEXELS`
+    /// off its surface along the face normal `f`: `LIFT_TEXELS` further, or
+    /// half way to a surface nearer in front of it (a ring's underside 1.7 mm
+    /// over the floor: a fixed twentieth of a texel started its rays under
+    /// the floor, and a fixed thousandth let a statue's creases block rays
     /// leaving them).
-    fn origin(&self, t: &Texel) -> DVec3 {
-        let f = face_of(t);
-        let start = t.position().as_dvec3() + f * self.min_lift;
+    fn origin(&self, start: DVec3, f: DVec3) -> DVec3 {
         let room = self.occluders.first_hit(start, f, self.lift).map_or(self.lift, |h| 0.5 * h.0);
         start + f * room
     }
@@ -295,7 +294,7 @@ impl<'a> Tracer<'a> {
         if !self.occluders.any_near_above(start, reach + self.lift, f) {
             return None;
         }
-        let o = self.origin(t);
+        let o = self.origin(start, f);
         let mut probe = Probe { hits: 0, nearest: f64::INFINITY, origin: o };
         for d in cosine_directions(t, PROBE_SIDE, &[i as u64, 1]) {
             if let Some((distance, primitive, _)) = self.occluders.first_hit(o, d, reach) {
