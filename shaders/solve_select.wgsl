@@ -2,6 +2,13 @@
 // Σ ΔL·A (luminance), one argmax round per slot in a single workgroup, ties
 // to the lower index. Also totals the unshot and received power for the
 // convergence trace. Runs entirely on the GPU: no read-back between shots.
+//
+// Each invocation keeps the best of its own patches (every THREADS-th);
+// a round reduces those in two flat steps (GROUPS bests, then one) rather
+// than a tree, and only the invocation whose patch won looks again: three
+// barriers a round instead of ten, which is what a round costs on a CPU
+// driver, where each barrier switches between all of a workgroup's
+// invocations.
 
 @group(0) @binding(0) var<uniform> params: BounceParams;
 @group(0) @binding(1) var<storage, read> patches: array<Patch>;
@@ -18,14 +25,20 @@
 // The batch's hemicube faces, five per slot, for the hemicube pass.
 @group(0) @binding(8) var<storage, read_write> hemicube_faces: array<HemicubeFace>;
 
-const THREADS: u32 = 256u;
+const THREADS: u32 = 64u;
+const GROUPS: u32 = 8u;
+const PER_GROUP: u32 = THREADS / GROUPS;
+// Per invocation, the best of its patches not yet chosen.
 var<workgroup> best_power: array<f32, THREADS>;
 var<workgroup> best_index: array<u32, THREADS>;
+// Per group of PER_GROUP invocations, the best of theirs; [0], the round's.
+var<workgroup> group_power: array<f32, GROUPS>;
+var<workgroup> group_index: array<u32, GROUPS>;
 var<workgroup> sum_unshot: array<vec3f, THREADS>;
 var<workgroup> sum_received: array<f32, THREADS>;
 var<workgroup> sum_landing: array<f32, THREADS>;
 
-@compute @workgroup_size(256)
+@compute @workgroup_size(THREADS)
 fn main(@builtin(local_invocation_index) lid: u32) {
     var unshot = vec3f(0.0);
     var received = 0.0;
@@ -52,36 +65,36 @@ fn main(@builtin(local_invocation_index) lid: u32) {
 
     var shot = vec3f(0.0);
     var count = 0u;
+    own_best(lid);
     for (var slot = 0u; slot < params.shooter_count; slot++) {
-        var power = 0.0;
-        var index = NO_TRIANGLE;
-        for (var j = lid; j < params.patch_count; j += THREADS) {
-            let p = luminance(patch_power[j].rgb);
-            if (chosen[j] == 0u && p > power) {
-                power = p;
-                index = j;
-            }
-        }
-        best_power[lid] = power;
-        best_index[lid] = index;
         workgroupBarrier();
-        for (var stride = THREADS / 2u; stride > 0u; stride /= 2u) {
-            if (lid < stride) {
-                let other = lid + stride;
-                let better = best_power[other] > best_power[lid]
-                    || (best_power[other] == best_power[lid] && best_index[other] < best_index[lid]);
-                if (better) {
-                    best_power[lid] = best_power[other];
-                    best_index[lid] = best_index[other];
+        if (lid < GROUPS) {
+            var power = best_power[lid * PER_GROUP];
+            var index = best_index[lid * PER_GROUP];
+            for (var k = lid * PER_GROUP + 1u; k < (lid + 1u) * PER_GROUP; k++) {
+                if (better(best_power[k], best_index[k], power, index)) {
+                    power = best_power[k];
+                    index = best_index[k];
                 }
             }
-            workgroupBarrier();
+            group_power[lid] = power;
+            group_index[lid] = index;
         }
-        let winner = best_index[0];
+        workgroupBarrier();
+        if (lid == 0u) {
+            for (var g = 1u; g < GROUPS; g++) {
+                if (better(group_power[g], group_index[g], group_power[0], group_index[0])) {
+                    group_power[0] = group_power[g];
+                    group_index[0] = group_index[g];
+                }
+            }
+        }
+        workgroupBarrier();
+        let winner = group_index[0];
         if (lid == 0u) {
             var shooter: Shooter;
             shooter.patch_index = NO_TRIANGLE;
-            if (winner != NO_TRIANGLE && best_power[0] > 0.0) {
+            if (winner != NO_TRIANGLE && group_power[0] > 0.0) {
                 let chosen_patch = patches[winner];
                 let power = patch_power[winner].rgb;
                 shooter.position = patch_origin[winner].xyz;
@@ -101,7 +114,6 @@ fn main(@builtin(local_invocation_index) lid: u32) {
                 shooter.half_u = chosen_patch.half_u;
                 shooter.half_v = chosen_patch.half_v;
                 shooter.rect_area = 4.0 * length(cross(chosen_patch.half_u, chosen_patch.half_v));
-                chosen[winner] = slot + 1u;
                 shot += power;
                 count += 1u;
             }
@@ -110,8 +122,12 @@ fn main(@builtin(local_invocation_index) lid: u32) {
                 hemicube_faces[slot * 5u + face] = HemicubeFace(shooter.position, shooter.lift, shooter.normal, face);
             }
         }
-        storageBarrier();
-        workgroupBarrier();
+        // The winner is one of its invocation's patches: that invocation
+        // marks it chosen and looks again among the rest.
+        if (winner != NO_TRIANGLE && group_power[0] > 0.0 && lid == winner % THREADS) {
+            chosen[winner] = slot + 1u;
+            own_best(lid);
+        }
     }
     if (lid == 0u) {
         stats.unshot = vec4f(sum_unshot[0], luminance(sum_unshot[0]));
@@ -120,4 +136,27 @@ fn main(@builtin(local_invocation_index) lid: u32) {
         stats.shot = vec4f(shot, luminance(shot));
         stats.shooters = count;
     }
+}
+
+// Whether a patch of power `p` and index `i` goes before the best so far:
+// more power, or as much and a lower index. NO_TRIANGLE (no patch) has
+// power 0 and never wins over a patch with power.
+fn better(p: f32, i: u32, power: f32, index: u32) -> bool {
+    return p > power || (p == power && i < index);
+}
+
+// The best of invocation `lid`'s patches not yet chosen in this batch (only
+// patches with power: a NaN or zero never shoots).
+fn own_best(lid: u32) {
+    var power = 0.0;
+    var index = NO_TRIANGLE;
+    for (var j = lid; j < params.patch_count; j += THREADS) {
+        let p = luminance(patch_power[j].rgb);
+        if (chosen[j] == 0u && p > power) {
+            power = p;
+            index = j;
+        }
+    }
+    best_power[lid] = power;
+    best_index[lid] = index;
 }
