@@ -1215,6 +1215,9 @@ fn render_hemicubes(
         cull.bind(&mut pass);
     }
     let (opaque, masked) = (&pipelines.hemicube.0, &pipelines.hemicube.1);
+    // Binding a pipeline makes a CPU driver derive its state again: the
+    // opaque one is bound once, and again only after a masked draw.
+    pass.set_pipeline(opaque);
     let face_bytes = std::mem::size_of::<HemicubeFace>() as u64;
     let s = face as f32;
     for slot in 0..shooters {
@@ -1233,12 +1236,11 @@ fn render_hemicubes(
             let instance = slot * 5 + f as u32;
             pass.set_vertex_buffer(1, r.hemicube_faces.slice(instance as u64 * face_bytes..));
             match cull {
-                Some(cull) => {
-                    pass.set_pipeline(opaque);
-                    cull.draw(&mut pass, instance);
-                    r.casters.draw_masked(&mut pass, masked, 0);
-                }
-                None => r.casters.draw(&mut pass, opaque, masked, 0),
+                Some(cull) => cull.draw(&mut pass, instance),
+                None => r.casters.draw_opaque(&mut pass, 0),
+            }
+            if r.casters.draw_masked(&mut pass, masked, 0) {
+                pass.set_pipeline(opaque);
             }
         }
     }

@@ -141,29 +141,23 @@ impl Casters {
         pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
     }
 
-    /// Draws every caster for `instance`: opaque triangles with `opaque`,
-    /// cut-out ones with `masked`. Leaves `masked` bound when it drew any.
-    pub fn draw(
-        &self,
-        pass: &mut wgpu::RenderPass,
-        opaque: &wgpu::RenderPipeline,
-        masked: &wgpu::RenderPipeline,
-        instance: u32,
-    ) {
+    /// Draws the opaque casters for `instance` with the bound pipeline.
+    pub fn draw_opaque(&self, pass: &mut wgpu::RenderPass, instance: u32) {
         if !self.opaque.is_empty() {
-            pass.set_pipeline(opaque);
             pass.draw_indexed(self.opaque.clone(), 0, instance..instance + 1);
         }
-        self.draw_masked(pass, masked, instance);
     }
 
     /// Draws the cut-out casters for `instance` with `masked`, from an
-    /// index buffer that holds the casters' own indices first.
-    pub fn draw_masked(&self, pass: &mut wgpu::RenderPass, masked: &wgpu::RenderPipeline, instance: u32) {
-        if !self.masked.is_empty() {
-            pass.set_pipeline(masked);
-            pass.draw_indexed(self.masked.clone(), 0, instance..instance + 1);
+    /// index buffer that holds the casters' own indices first; whether
+    /// there were any (and `masked` is now bound).
+    pub fn draw_masked(&self, pass: &mut wgpu::RenderPass, masked: &wgpu::RenderPipeline, instance: u32) -> bool {
+        if self.masked.is_empty() {
+            return false;
         }
+        pass.set_pipeline(masked);
+        pass.draw_indexed(self.masked.clone(), 0, instance..instance + 1);
+        true
     }
 
     /// A depth-only pipeline for casters: `fragment` None for opaque triangles.
