@@ -12,32 +12,11 @@
 use std::time::Instant;
 
 use anyhow::Result;
-use glam::{Quat, Vec3};
-
 use bake::asset::SourceAsset;
 use bake::config::BakeOptions;
-use bake::fixtures::{MeshData, Placement, SceneBuilder};
+use bake::fixtures::six_wall_room;
 use bake::gpu::Gpu;
 use bake::progress::Silent;
-
-/// The room: floor, ceiling, −X, +X, −Z, +Z, each a quad facing inwards.
-fn room(albedo: f32) -> SceneBuilder {
-    let mut builder = SceneBuilder::new();
-    let walls = [
-        (Quat::IDENTITY, Vec3::new(0.0, -1.0, 0.0)),
-        (Quat::from_rotation_x(180f32.to_radians()), Vec3::new(0.0, 1.0, 0.0)),
-        (Quat::from_rotation_z(-90f32.to_radians()), Vec3::new(-1.0, 0.0, 0.0)),
-        (Quat::from_rotation_z(90f32.to_radians()), Vec3::new(1.0, 0.0, 0.0)),
-        (Quat::from_rotation_x(90f32.to_radians()), Vec3::new(0.0, 0.0, -1.0)),
-        (Quat::from_rotation_x(-90f32.to_radians()), Vec3::new(0.0, 0.0, 1.0)),
-    ];
-    let colour = [albedo, albedo, albedo, 1.0];
-    for (k, (rotation, at)) in walls.into_iter().enumerate() {
-        let placement = Placement::at(at).rotated(rotation);
-        builder.object(&format!("wall{k}"), &MeshData::plane(2.0, 2.0, 4), colour, [1.0; 3], placement);
-    }
-    builder
-}
 
 fn main() -> Result<()> {
     let albedos: Vec<f32> =
@@ -49,7 +28,7 @@ fn main() -> Result<()> {
     println!("|---|---|---|---|---|---|---|---|");
     for &albedo in &albedos {
         for patches in [256, 1024] {
-            let glb = room(albedo).to_glb();
+            let glb = six_wall_room([(albedo, 1.0); 6]).to_glb();
             let scene = bake::import::from_asset(SourceAsset::from_bytes("room.glb".as_ref(), &glb, None)?)?;
             let mut options = BakeOptions::default();
             options.unwrap.max_atlas_size = 96;

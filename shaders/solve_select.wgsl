@@ -91,10 +91,11 @@ fn main(@builtin(local_invocation_index) lid: u32) {
         }
         workgroupBarrier();
         let winner = group_index[0];
+        let shoots = winner != NO_TRIANGLE && group_power[0] > 0.0;
         if (lid == 0u) {
             var shooter: Shooter;
             shooter.patch_index = NO_TRIANGLE;
-            if (winner != NO_TRIANGLE && group_power[0] > 0.0) {
+            if (shoots) {
                 let chosen_patch = patches[winner];
                 let power = patch_power[winner].rgb;
                 shooter.position = patch_origin[winner].xyz;
@@ -124,7 +125,7 @@ fn main(@builtin(local_invocation_index) lid: u32) {
         }
         // The winner is one of its invocation's patches: that invocation
         // marks it chosen and looks again among the rest.
-        if (winner != NO_TRIANGLE && group_power[0] > 0.0 && lid == winner % THREADS) {
+        if (shoots && lid == winner % THREADS) {
             chosen[winner] = slot + 1u;
             own_best(lid);
         }

@@ -670,6 +670,30 @@ impl SceneBuilder {
     }
 }
 
+/// A closed 2×2×2 m room whose six walls are separate quads facing inwards,
+/// with (albedo, emission) per wall: floor, ceiling, −X, +X, −Z, +Z.
+pub fn six_wall_room(walls: [(f32, f32); 6]) -> SceneBuilder {
+    let mut builder = SceneBuilder::new();
+    let placements = [
+        (Quat::IDENTITY, Vec3::new(0.0, -1.0, 0.0)),
+        (Quat::from_rotation_x(180f32.to_radians()), Vec3::new(0.0, 1.0, 0.0)),
+        (Quat::from_rotation_z(-90f32.to_radians()), Vec3::new(-1.0, 0.0, 0.0)),
+        (Quat::from_rotation_z(90f32.to_radians()), Vec3::new(1.0, 0.0, 0.0)),
+        (Quat::from_rotation_x(90f32.to_radians()), Vec3::new(0.0, 0.0, -1.0)),
+        (Quat::from_rotation_x(-90f32.to_radians()), Vec3::new(0.0, 0.0, 1.0)),
+    ];
+    for (k, ((rotation, at), (albedo, emission))) in placements.into_iter().zip(walls).enumerate() {
+        builder.object(
+            &format!("wall{k}"),
+            &MeshData::plane(2.0, 2.0, 4),
+            [albedo, albedo, albedo, 1.0],
+            [emission; 3],
+            Placement::at(at).rotated(rotation),
+        );
+    }
+    builder
+}
+
 /// A closed room (inward-facing box of `size`) of one grey material of
 /// base colour `base` and emission `emission`, every vertex coloured `tint`
 /// (COLOR_0): its albedo is `base × tint`.

@@ -6,7 +6,7 @@ use crate::common;
 
 use bake::config::BakeOptions;
 use bake::environment::{EnvironmentMap, LightMode};
-use bake::fixtures::{MeshData, Placement, SceneBuilder};
+use bake::fixtures::{MeshData, Placement, SceneBuilder, six_wall_room};
 use bake::progress::Silent;
 use glam::{Quat, Vec3};
 
@@ -32,30 +32,6 @@ fn area_mean(baked: &bake::Baked, primitives: &[u32], value: impl Fn(usize) -> f
     sum / area
 }
 
-/// A closed 2×2×2 m room whose six walls are separate quads facing inwards,
-/// with (albedo, emission) per wall: floor, ceiling, −X, +X, −Z, +Z.
-fn room(walls: [(f32, f32); 6]) -> SceneBuilder {
-    let mut builder = SceneBuilder::new();
-    let placements = [
-        (Quat::IDENTITY, Vec3::new(0.0, -1.0, 0.0)),
-        (Quat::from_rotation_x(180f32.to_radians()), Vec3::new(0.0, 1.0, 0.0)),
-        (Quat::from_rotation_z(-90f32.to_radians()), Vec3::new(-1.0, 0.0, 0.0)),
-        (Quat::from_rotation_z(90f32.to_radians()), Vec3::new(1.0, 0.0, 0.0)),
-        (Quat::from_rotation_x(90f32.to_radians()), Vec3::new(0.0, 0.0, -1.0)),
-        (Quat::from_rotation_x(-90f32.to_radians()), Vec3::new(0.0, 0.0, 1.0)),
-    ];
-    for (k, ((rotation, at), (albedo, emission))) in placements.into_iter().zip(walls).enumerate() {
-        builder.object(
-            &format!("wall{k}"),
-            &MeshData::plane(2.0, 2.0, 4),
-            [albedo, albedo, albedo, 1.0],
-            [emission; 3],
-            Placement::at(at).rotated(rotation),
-        );
-    }
-    builder
-}
-
 /// About as many shooter patches as two closed rooms below are cut into:
 /// what they check (the mean, the light left unshot) does not depend on how
 /// fine the patches are, and a room converges in as many shots per patch
@@ -69,7 +45,7 @@ fn closed_room_with_uniform_emission_reaches_le_over_one_minus_rho() {
     // off with coarse ones (at ρ = 0.95, 4.5 % after 1,500 shots of 280
     // patches, against 2.3 % after 8,000 of 1,526).
     for (rho, tolerance, shots) in [(0.5f32, 0.02f32, 4_000), (0.95, 0.05, 8_000)] {
-        let baked = bake_emitters(&room([(rho, 1.0); 6]), 96, |o| o.solve.bounce.max_shots = Some(shots));
+        let baked = bake_emitters(&six_wall_room([(rho, 1.0); 6]), 96, |o| o.solve.bounce.max_shots = Some(shots));
         let expected = 1.0 / (1.0 - rho);
         let bounce = baked.solution.bounce.as_ref().expect("the bounce pass ran");
         assert_eq!(bounce.stopped_by, bake::solve::StopReason::MaxShots, "ρ = {rho}: a bounded run");
@@ -99,7 +75,7 @@ fn a_converged_closed_room_counts_the_light_it_had_left_to_shoot() {
     // unshot; it would have landed where the shots' light did, and must be
     // in the answer: mean L_lm = Le/(1 − ρ) to well within that 1 %.
     let rho = 0.8f32;
-    let baked = bake_emitters(&room([(rho, 1.0); 6]), 96, |o| o.solve.bounce.patches = ROOM_PATCHES);
+    let baked = bake_emitters(&six_wall_room([(rho, 1.0); 6]), 96, |o| o.solve.bounce.patches = ROOM_PATCHES);
     let bounce = baked.solution.bounce.as_ref().expect("the bounce pass ran");
     assert_eq!(bounce.stopped_by, bake::solve::StopReason::Converged);
     let mean = area_mean(&baked, &[0, 1, 2, 3, 4, 5], |i| baked.solution.lightmap[i][0]);
@@ -118,7 +94,7 @@ fn closed_room_with_one_emitting_wall_keeps_the_mean() {
     for (rho, tolerance) in [(0.5f32, 0.02f64), (0.95, 0.05)] {
         let mut walls = [(rho, 0.0); 6];
         walls[1].1 = 3.0;
-        let baked = bake_emitters(&room(walls), 96, |o| {
+        let baked = bake_emitters(&six_wall_room(walls), 96, |o| {
             o.solve.bounce.max_shots = Some(1_500);
             o.solve.bounce.patches = ROOM_PATCHES;
         });
@@ -212,7 +188,7 @@ fn a_floor_laid_twice_or_just_over_itself_glows_and_reflects_once() {
     // 6,000 within 0.5 % (at convergence, 13,184 shots, within 0.4 %).
     let shots = 3_000;
     for lift in [0.0f32, 0.01] {
-        let mut builder = room([(rho, 1.0); 6]);
+        let mut builder = six_wall_room([(rho, 1.0); 6]);
         builder.object(
             "floor over the floor",
             &MeshData::plane(2.0, 2.0, 3),
@@ -248,7 +224,7 @@ fn floor_tiles_that_only_meet_along_an_edge_do_not_overlap() {
     // Two tiles of one floor, separate meshes, meeting along an edge: their
     // border texels lie on that edge, and neither tile lies over the other
     // there, so each bounces its own light in full.
-    let mut builder = room([(0.8, 1.0); 6]);
+    let mut builder = six_wall_room([(0.8, 1.0); 6]);
     for x in [-0.4f32, 0.4] {
         builder.object(
             "tile",
