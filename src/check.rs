@@ -286,7 +286,11 @@ pub fn run(options: &CheckOptions) -> Result<Findings> {
         findings.scenes += 1;
         findings.primitives += scene.energy.len();
         findings.violations.extend(invariants(scene));
-        check_lightmap_files(report_path.parent().unwrap_or(Path::new(".")), scene, &mut findings)?;
+        let dir = report_path.parent().unwrap_or(Path::new("."));
+        check_lightmap_files(dir, scene, &mut findings)?;
+        if let Some(probes) = &scene.probes {
+            findings.violations.extend(probe_violations(dir, scene, probes.probes)?);
+        }
     }
     if let Some(env) = &report.environment {
         for c in 0..3 {
@@ -574,6 +578,42 @@ fn check_lightmap_files(dir: &Path, scene: &SceneReport, findings: &mut Findings
         Err(e) => findings.violations.push(unreadable(&ktx2, e)),
     }
     Ok(())
+}
+
+/// Re-reads the scene's probe values (`NAME.probes.bin`, six RGB faces of
+/// f32 per probe): there must be `probes` of them, each finite and not
+/// negative. A file of another size is refused unread.
+fn probe_violations(dir: &Path, scene: &SceneReport, probes: usize) -> Result<Vec<Violation>> {
+    use std::io::Read;
+    let path = dir.join(format!("{}.probes.bin", scene.name));
+    let say = |message: String| vec![Violation { scene: scene.name.clone(), message }];
+    let (file, length) = match crate::files::open(&path) {
+        Ok(opened) => opened,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Ok(say(format!("probes '{}' are missing", path.display())));
+        }
+        Err(e) => return Ok(say(format!("probes '{}': {e}", path.display()))),
+    };
+    const FACE_VALUES: usize = 18;
+    let expected = (probes * FACE_VALUES * 4) as u64;
+    if length != expected {
+        return Ok(say(format!("probes '{}' are {length} bytes, not {expected} for {probes} probes", path.display())));
+    }
+    let mut bytes = Vec::with_capacity(length as usize);
+    file.take(length).read_to_end(&mut bytes).with_context(|| format!("probes '{}': cannot read", path.display()))?;
+    let values: Vec<f32> = bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+    let bad: Vec<usize> = (0..values.len()).filter(|&i| !(values[i].is_finite() && values[i] >= 0.0)).collect();
+    Ok(match bad.first() {
+        None => Vec::new(),
+        Some(&i) => say(format!(
+            "probes '{}': {} values are NaN, infinite or negative, the first probe {} face {} ({})",
+            path.display(),
+            bad.len(),
+            i / FACE_VALUES,
+            crate::probes::FACES[i % FACE_VALUES / 3],
+            values[i]
+        )),
+    })
 }
 
 /// Reads the KTX2 lightmap opened as `file` (`length` bytes) and checks it

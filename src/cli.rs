@@ -12,6 +12,7 @@ use crate::config::{BakeOptions, Config, EnvironmentOptions};
 use crate::environment::LightMode;
 use crate::export::{ExportOptions, Format, MaterialDefault};
 use crate::import::ImportOptions;
+use crate::probes::ProbeOptions;
 use crate::progress::LogMode;
 use crate::reference::ReferenceCheck;
 use crate::report::ReportOptions;
@@ -147,6 +148,27 @@ pub struct Args {
     /// overlapping triangles; otherwise unwrap as usual, with a notice saying what failed
     #[arg(long)]
     pub keep_uv1: bool,
+
+    /// Also bake light probes for what moves through the scene: an irradiance volume of ambient cubes no more
+    /// than this many metres apart over the scene's bounds (or --probe-box), written as OUT/<name>.probes.ktx2
+    /// (Bevy's IrradianceVolume) and OUT/<name>.probes.json + .bin
+    #[arg(long, value_name = "SPACING")]
+    pub probes: Option<f64>,
+
+    /// The box the probes fill, in world coordinates (metres) [default: the scene's bounds]
+    #[arg(
+        long,
+        value_name = "MINX,MINY,MINZ,MAXX,MAXY,MAXZ",
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        requires = "probes"
+    )]
+    pub probe_box: Option<Vec<f64>>,
+
+    /// Gather rays per probe (the noise of the surfaces' light in a probe falls as 1/√rays)
+    #[arg(long, value_name = "N", default_value_t = crate::probes::DEFAULT_RAYS,
+          value_parser = clap::value_parser!(u32).range(16..=1 << 16))]
+    pub probe_rays: u32,
 
     /// Use the GPU adapter whose name contains this text (e.g. "llvmpipe", "NVIDIA")
     #[arg(long, value_name = "NAME")]
@@ -295,6 +317,21 @@ impl Args {
         if !self.exposure.is_finite() {
             bail!("--exposure must be finite");
         }
+        self.check_probe_ranges()
+    }
+
+    fn check_probe_ranges(&self) -> Result<()> {
+        if let Some(spacing) = self.probes
+            && !(spacing.is_finite() && spacing > 0.0)
+        {
+            bail!("--probes must be a positive distance in metres, not {spacing}");
+        }
+        if let Some(b) = &self.probe_box {
+            let box_ok = b.len() == 6 && b.iter().all(|v| v.is_finite()) && (0..3).all(|k| b[k] <= b[k + 3]);
+            if !box_ok {
+                bail!("--probe-box must be six finite numbers MINX,MINY,MINZ,MAXX,MAXY,MAXZ with each min ≤ its max");
+            }
+        }
         Ok(())
     }
 
@@ -327,6 +364,11 @@ impl Args {
                 material: self.material,
                 ..ExportOptions::default()
             },
+            probes: self.probes.map(|spacing| ProbeOptions {
+                spacing,
+                region: self.probe_box.as_ref().map(|b| [[b[0], b[1], b[2]], [b[3], b[4], b[5]]]),
+                rays: self.probe_rays,
+            }),
             reference: self.reference.map(|texels| ReferenceCheck {
                 texels,
                 samples: self.reference_samples,

@@ -44,6 +44,8 @@ pub struct BakeOptions {
     pub keep_uv1: bool,
     pub solve: SolveOptions,
     pub export: ExportOptions,
+    /// `--probes`: bake an irradiance volume too.
+    pub probes: Option<crate::probes::ProbeOptions>,
     /// `--reference`: estimate some texels with the CPU reference and trace the error at them.
     pub reference: Option<crate::reference::ReferenceCheck>,
 }
@@ -99,6 +101,9 @@ impl From<&Config> for OptionsReport {
             plot: config.report.plot,
             reference_texels: bake.reference.as_ref().map_or(0, |r| r.texels),
             reference_samples: bake.reference.as_ref().map_or(0, |r| r.samples),
+            probe_spacing: bake.probes.as_ref().map(|p| p.spacing),
+            probe_box: bake.probes.as_ref().and_then(|p| p.region),
+            probe_rays: bake.probes.as_ref().map_or(0, |p| p.rays),
         }
     }
 }

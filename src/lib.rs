@@ -25,6 +25,7 @@ pub mod limits;
 pub mod memory;
 pub mod output;
 pub mod plot;
+pub mod probes;
 pub mod progress;
 pub mod reference;
 pub mod repeats;
@@ -63,6 +64,8 @@ pub struct Baked {
     pub reference: Option<report::ReferenceReport>,
     /// The atlas is the input's own TEXCOORD_1 (`--keep-uv1`), not a new unwrap.
     pub uv1_reused: bool,
+    /// `--probes`: the irradiance volume.
+    pub probes: Option<probes::Probes>,
 }
 
 /// Times `f` as stage `name` of `scene` and measures its memory, reporting to `progress`.
@@ -117,6 +120,7 @@ pub fn bake_scene(
         progress.notice(&notice);
         notices.push(notice);
     }
+    let probe_grid = options.probes.as_ref().map(|p| probes::grid_for(&scene, p).context("--probes")).transpose()?;
     let (atlas, uv1_reused) = stage(gpu, progress, &mut stages, &name, "unwrap", |_| unwrap_scene(&scene, options))?;
     for notice in &atlas.notices {
         progress.notice(notice);
@@ -147,6 +151,17 @@ pub fn bake_scene(
         let summary = solve_summary(&solution, &texels);
         Ok((solution, summary))
     })?;
+    let probes = match (&options.probes, probe_grid) {
+        (Some(probe_options), Some(grid)) => Some(stage(gpu, progress, &mut stages, &name, "probes", |progress| {
+            let solved = probes::Solved { scene: &scene, atlas: &atlas, texels: &texels, solution: &solution };
+            let probes = probes::run(gpu, &solved, lights, grid, probe_options, &mut |d, t| progress.update(d, t))?;
+            let s = &probes.stats;
+            let [nx, ny, nz] = s.grid.counts;
+            let summary = format!("{nx}×{ny}×{nz} probes, {} buried, {} rays each", s.buried, s.rays + s.lights as u32);
+            Ok((probes, summary))
+        })?),
+        _ => None,
+    };
     let reference = reference.map(|(probes, noise, seconds)| report::ReferenceReport {
         texels: probes.texels.len(),
         samples: options.reference.as_ref().map_or(0, |r| r.samples),
@@ -154,7 +169,7 @@ pub fn bake_scene(
         noise,
         error: probes.lightmap_error(&solution.lightmap),
     });
-    Ok(Baked { scene, atlas, texels, solution, stages, notices, reference, uv1_reused })
+    Ok(Baked { scene, atlas, texels, solution, stages, notices, reference, uv1_reused, probes })
 }
 
 /// The unwrap stage: the scene's own TEXCOORD_1 (`--keep-uv1`) or a new
@@ -448,6 +463,10 @@ fn bake_input(
         let summary = format!("{} files", stats.files.len());
         Ok((stats, summary))
     })?;
+    let mut exported = exported;
+    if let Some(probes) = &baked.probes {
+        exported.files.extend(write_probes(&baked.scene.name, probes, staging.dir())?);
+    }
     let mut scene = scene_report(input, &baked, stages, exported, &config.bake, staging);
     if config.report.plot {
         let path = staging.dir().join(format!("{}.convergence.svg", scene.name));
@@ -456,6 +475,23 @@ fn bake_input(
         scene.outputs.push(staging.final_path(&path));
     }
     Ok(scene)
+}
+
+/// Writes the probe volume's files (`probes::write`) into `dir`.
+fn write_probes(name: &str, probes: &probes::Probes, dir: &Path) -> Result<Vec<std::path::PathBuf>> {
+    let names = probes::write::file_names(name);
+    let contents = [
+        probes::write::encode_ktx2(probes)?,
+        probes::write::encode_json(name, probes)?,
+        probes::write::encode_bin(probes),
+    ];
+    let mut files = Vec::new();
+    for (name, bytes) in names.iter().zip(contents) {
+        let path = dir.join(name);
+        export::write_new(&path, &bytes)?;
+        files.push(path);
+    }
+    Ok(files)
 }
 
 /// Refuses an input nothing lights: no environment `lights` (or a black
@@ -530,6 +566,7 @@ fn scene_report(
         contact: baked.solution.contact.clone(),
         energy: report::primitive_energy(&baked.texels, &baked.solution, &keys, &names),
         reference: baked.reference.clone(),
+        probes: baked.probes.as_ref().map(|p| p.stats.clone()),
     }
 }
 

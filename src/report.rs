@@ -18,6 +18,7 @@ use sha2::{Digest, Sha256};
 
 use crate::colour::luminance;
 use crate::gpu::AdapterDescription;
+use crate::probes::ProbeStats;
 use crate::scene::PrimitiveKey;
 use crate::solve::{BounceStats, ContactStats, Skipped, Solution, direct::DirectStats, punctual::PunctualStats};
 use crate::texelize::TexelSet;
@@ -27,7 +28,7 @@ use crate::texelize::TexelSet;
 /// scene's `punctual`, version 6 the direct pass's `rays` in place of its
 /// shadow-map size (and the option with it); `bake check` still reads
 /// version 3.
-pub const SCHEMA_VERSION: u32 = 6;
+pub const SCHEMA_VERSION: u32 = 7;
 
 /// The oldest version `bake check` reads: every later change only added
 /// optional fields.
@@ -119,6 +120,14 @@ pub struct OptionsReport {
     /// `--reference`: texels estimated by the CPU reference (0: none).
     pub reference_texels: usize,
     pub reference_samples: u32,
+    /// `--probes`: the largest distance between probes, metres (absent before version 7).
+    #[serde(default)]
+    pub probe_spacing: Option<f64>,
+    /// `--probe-box`: min and max corners, world metres.
+    #[serde(default)]
+    pub probe_box: Option<[[f64; 3]; 2]>,
+    #[serde(default)]
+    pub probe_rays: u32,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -173,6 +182,9 @@ pub struct SceneReport {
     pub energy: Vec<PrimitiveEnergy>,
     /// `--reference`: the bake's error against the CPU reference at some texels.
     pub reference: Option<ReferenceReport>,
+    /// `--probes`: the irradiance volume's grid and what baking it took (absent before version 7).
+    #[serde(default)]
+    pub probes: Option<ProbeStats>,
 }
 
 /// What `--reference` measured.

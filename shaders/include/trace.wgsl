@@ -124,11 +124,12 @@ struct Walk {
 
 // Walks on from `walk` until the ray o + t·d (1/d in `inv`), 0 < t < t_max,
 // meets a triangle other than `skip`: an opaque one ends the walk
-// (returns 1), a cut-out one pauses it with the hit in `pending` (returns
-// 2, the walk resumable), none ends it at the tree's end (returns 0). One
+// (returns 1), a cut-out one pauses it (returns 2), none ends it at the
+// tree's end (returns 0). A walk that met a triangle can be resumed, and
+// `pending` holds the hit (triangle in leaf order, u, v, t). One
 // node or one triangle a turn, so no turn holds a loop of its own (a CPU
 // driver runs a loop's body at least once per turn, needed or not).
-fn walk_ray(o: vec3f, d: vec3f, inv: vec3f, t_max: f32, skip: u32, walk: ptr<function, Walk>, pending: ptr<function, vec3f>) -> u32 {
+fn walk_ray(o: vec3f, d: vec3f, inv: vec3f, t_max: f32, skip: u32, walk: ptr<function, Walk>, pending: ptr<function, vec4f>) -> u32 {
     var outcome = 0u;
     loop {
         let testing = (*walk).triangle < (*walk).triangle_end;
@@ -149,7 +150,7 @@ fn walk_ray(o: vec3f, d: vec3f, inv: vec3f, t_max: f32, skip: u32, walk: ptr<fun
         let h = triangle_hit(o, d, bitcast<vec3f>(r0.xyz), bitcast<vec3f>(r1.xyz), bitcast<vec3f>(r2.xyz));
         let met = testing && r0.w != skip && h.x > 0.0 && h.x < t_max;
         let cut_out = CUT_OUTS && (r1.w & CUT_OUT) != 0u;
-        *pending = select(*pending, vec3f(bitcast<f32>((*walk).triangle), h.y, h.z), met && cut_out);
+        *pending = select(*pending, vec4f(bitcast<f32>((*walk).triangle), h.y, h.z, h.x), met);
         outcome = select(outcome, select(1u, 2u, cut_out), met);
         // As a node.
         let span = box_span(BoxNode(bitcast<vec3f>(r0.xyz), r0.w, bitcast<vec3f>(r1.xyz), r1.w), o, inv, t_max);
@@ -171,7 +172,7 @@ fn walk_ray(o: vec3f, d: vec3f, inv: vec3f, t_max: f32, skip: u32, walk: ptr<fun
 fn occluded(o: vec3f, d: vec3f, t_max: f32, skip: u32, wanted: bool) -> bool {
     let inv = inverse_direction(d);
     var walk = Walk(select(scene.node_count, 0u, wanted), 0u, 0u, 0u);
-    var pending = vec3f(0.0);
+    var pending = vec4f(0.0);
     var outcome = walk_ray(o, d, inv, t_max, skip, &walk, &pending);
     if (CUT_OUTS) {
         // Through the holes: test the cut-out met, and walk on if the ray
@@ -188,6 +189,36 @@ fn occluded(o: vec3f, d: vec3f, t_max: f32, skip: u32, wanted: bool) -> bool {
     }
     trace_visits += walk.visits;
     return outcome != 0u;
+}
+
+// The nearest solid surface on the ray o + t·d, t > 0: (triangle in leaf
+// order, u, v, t), with t < 0 where the ray leaves the scene. Holes of
+// cut-outs let it through. The walk goes on past each hit with the ray cut
+// short there, so what is left of the tree is pruned by the nearest so far.
+fn closest_hit(o: vec3f, d: vec3f) -> vec4f {
+    let inv = inverse_direction(d);
+    var walk = Walk(0u, 0u, 0u, 0u);
+    var pending = vec4f(0.0);
+    var nearest = vec4f(0.0, 0.0, 0.0, -1.0);
+    var t_max = 3.0e38;
+    loop {
+        let outcome = walk_ray(o, d, inv, t_max, 0xffffffffu, &walk, &pending);
+        // A walk stopped at MAX_VISITS met nothing: it ends (`trace_cut` says so).
+        if (outcome == 0u || walk.visits == MAX_VISITS) {
+            break;
+        }
+        let k = bitcast<u32>(pending.x);
+        var solid = true;
+        if (CUT_OUTS && outcome == 2u) {
+            solid = !in_cut_out(k, record(scene.triangle_base + 3u * k + 1u).w, pending.y, pending.z);
+        }
+        if (solid) {
+            nearest = pending;
+            t_max = pending.w;
+        }
+    }
+    trace_visits += walk.visits;
+    return nearest;
 }
 
 // A ray origin off the surface at `p` along its face normal `face`: clear

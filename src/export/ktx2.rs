@@ -49,11 +49,24 @@ pub fn unpack_e5b9g9r9(texel: u32) -> [f32; 3] {
 /// The KTX2 file of a `width` × `height` image of `pixels` (row-major, the
 /// first row the top): E5B9G9R9, one level, Zstandard-supercompressed.
 pub fn encode(width: u32, height: u32, pixels: &[[f32; 3]]) -> Result<Vec<u8>> {
-    ensure!(width > 0 && height > 0, "an empty lightmap ({width}×{height})");
+    encode_with_depth(width, height, 0, pixels)
+}
+
+/// As [`encode`], a 3D texture of `depth` slices of `width` × `height`,
+/// one after another (a light probe volume).
+pub fn encode_volume(width: u32, height: u32, depth: u32, pixels: &[[f32; 3]]) -> Result<Vec<u8>> {
+    ensure!(depth > 0, "a volume without slices");
+    encode_with_depth(width, height, depth, pixels)
+}
+
+/// A 2D image (`depth` 0) or a volume.
+fn encode_with_depth(width: u32, height: u32, depth: u32, pixels: &[[f32; 3]]) -> Result<Vec<u8>> {
+    ensure!(width > 0 && height > 0, "an empty image ({width}×{height})");
     ensure!(
-        pixels.len() as u64 == u64::from(width) * u64::from(height),
-        "{} texels for {width}×{height}",
-        pixels.len()
+        pixels.len() as u64 == u64::from(width) * u64::from(height) * u64::from(depth.max(1)),
+        "{} texels for {width}×{height}×{}",
+        pixels.len(),
+        depth.max(1)
     );
     let texels: Vec<u8> = pixels.iter().flat_map(|&p| pack_e5b9g9r9(p).to_le_bytes()).collect();
     let level = ruzstd::encoding::compress_to_vec(texels.as_slice(), ruzstd::encoding::CompressionLevel::Fastest);
@@ -64,7 +77,9 @@ pub fn encode(width: u32, height: u32, pixels: &[[f32; 3]]) -> Result<Vec<u8>> {
     // The DFD section: its total length, then its one block.
     let dfd_section = [&(4 + block.len() as u32).to_le_bytes()[..], &block].concat();
     let writer = format!("bake {}", env!("CARGO_PKG_VERSION"));
-    let kvd = key_value_data(&[("KTXorientation", "rd"), ("KTXwriter", &writer)]);
+    // Right, down, and for a volume into the screen: KTX2's defaults, said.
+    let orientation = if depth > 0 { "rdi" } else { "rd" };
+    let kvd = key_value_data(&[("KTXorientation", orientation), ("KTXwriter", &writer)]);
     let dfd_offset = Header::LENGTH + LevelIndex::LENGTH;
     let kvd_offset = dfd_offset + dfd_section.len();
     // Every section above is a whole number of 4-byte words: so is the level's offset.
@@ -74,7 +89,7 @@ pub fn encode(width: u32, height: u32, pixels: &[[f32; 3]]) -> Result<Vec<u8>> {
         type_size,
         pixel_width: width,
         pixel_height: height,
-        pixel_depth: 0,
+        pixel_depth: depth,
         layer_count: 0,
         face_count: 1,
         level_count: 1,

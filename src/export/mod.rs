@@ -244,7 +244,7 @@ fn record_lightmapped_nodes(
 }
 
 /// Writes a file that must not exist yet: two outputs of one run never share a name.
-fn write_new(path: &Path, bytes: &[u8]) -> Result<()> {
+pub fn write_new(path: &Path, bytes: &[u8]) -> Result<()> {
     let write = || -> std::io::Result<()> {
         let mut file = std::fs::OpenOptions::new().write(true).create_new(true).open(path)?;
         file.write_all(bytes)?;

@@ -32,6 +32,8 @@ pub enum Shader {
     SolveShooterCull,
     /// Every texel gathers the batch's shots.
     SolveShoot,
+    /// Each light probe's ambient cube from the lights and the solved surfaces.
+    ProbesGather,
 }
 
 impl Shader {
@@ -46,6 +48,7 @@ impl Shader {
         Shader::SolveHemicubeCull,
         Shader::SolveShooterCull,
         Shader::SolveShoot,
+        Shader::ProbesGather,
     ];
 
     /// The file stem, also used as the pipeline label.
@@ -61,6 +64,7 @@ impl Shader {
             Shader::SolveHemicubeCull => "solve_hemicube_cull",
             Shader::SolveShooterCull => "solve_shooter_cull",
             Shader::SolveShoot => "solve_shoot",
+            Shader::ProbesGather => "probes_gather",
         }
     }
 
@@ -76,6 +80,7 @@ impl Shader {
             Shader::SolveHemicubeCull => include_str!("../../shaders/solve_hemicube_cull.wgsl"),
             Shader::SolveShooterCull => include_str!("../../shaders/solve_shooter_cull.wgsl"),
             Shader::SolveShoot => include_str!("../../shaders/solve_shoot.wgsl"),
+            Shader::ProbesGather => include_str!("../../shaders/probes_gather.wgsl"),
         }
     }
 
@@ -83,6 +88,7 @@ impl Shader {
     fn includes(self) -> &'static [&'static str] {
         match self {
             Shader::SolveOccluders | Shader::SolveDirect => &[TRACE, OCCLUDERS],
+            Shader::ProbesGather => &[TRACE],
             _ => &[],
         }
     }

@@ -28,6 +28,7 @@ mod lights;
 mod materials;
 mod morph;
 mod pipeline;
+mod probes;
 mod punctual;
 mod quality;
 mod radiosity;
