@@ -458,6 +458,12 @@ mod tests {
             "123",
             "--material",
             "engine",
+            "--probes",
+            "0.5",
+            "--probe-box",
+            "-1,0,-2.5,1,2,2.5",
+            "--probe-rays",
+            "256",
         ])
         .unwrap();
         assert_eq!(config.inputs.len(), 2);
@@ -483,6 +489,8 @@ mod tests {
         assert!(config.bake.keep_uv1);
         assert_eq!(config.import.max_triangles, 123);
         assert_eq!(config.bake.export.material, MaterialDefault::Engine);
+        let probes = ProbeOptions { spacing: 0.5, region: Some([[-1.0, 0.0, -2.5], [1.0, 2.0, 2.5]]), rays: 256 };
+        assert_eq!(config.bake.probes, Some(probes));
         assert_eq!(parse(&["a.glb", "--material", "preview"]).unwrap().bake.export.material, MaterialDefault::Preview);
         assert_eq!(parse(&["a.glb", "-q"]).unwrap().log, LogMode::Quiet);
     }

@@ -138,6 +138,13 @@ fn the_cli_writes_the_probe_files_and_check_guards_their_values() {
     let probes: u64 = counts.iter().product();
     let buried = header["buried"].as_array().unwrap();
     assert!(!buried.is_empty(), "probes inside the sphere are flagged");
+    let schema_check = common::node(
+        "pipeline/schema.mjs",
+        &[common::repo("schema/report.schema.json").as_os_str(), out.join("report.json").as_os_str()],
+    );
+    let found: serde_json::Value = serde_json::from_str(&schema_check).unwrap();
+    let errors = found.as_object().unwrap().values().flat_map(|v| v.as_array().unwrap()).count();
+    assert_eq!(errors, 0, "the report does not follow its schema: {schema_check}");
     let report = bake::check::read_report(&out.join("report.json")).unwrap();
     let stats = report.scenes[0].probes.as_ref().unwrap();
     assert_eq!((stats.probes as u64, stats.buried), (probes, buried.len()));
