@@ -457,6 +457,7 @@ fn bake_input(
             texels: &baked.texels,
             lightmap: &baked.solution.lightmap,
             uv1_reused: baked.uv1_reused,
+            probes: baked.probes.as_ref().map(|p| probes::write::gltf_record(&baked.scene.name, p)),
         };
         let stats = export::run(&results, &config.bake.export, staging.dir())
             .with_context(|| format!("input '{}': export", input.display()))?;

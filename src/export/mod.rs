@@ -118,6 +118,9 @@ pub struct Input<'a> {
     pub lightmap: &'a [[f32; 3]],
     /// The atlas is the input's own TEXCOORD_1 (`--keep-uv1`), not a new unwrap.
     pub uv1_reused: bool,
+    /// `--probes`: the probe volume's files and placement, recorded in each
+    /// scene's `extras.bake.probes`.
+    pub probes: Option<serde_json::Value>,
 }
 
 /// Writes the baked scene into `dir` (which must not hold these files yet)
@@ -165,6 +168,9 @@ pub fn run(baked: &Input, options: &ExportOptions, dir: &Path) -> Result<ExportS
     );
     let (rewritten, mut notices) = primitives::rewrite(&mut document, scene, atlas, baked.uv1_reused)?;
     notices.extend(record_lightmapped_nodes(&mut document, &rewritten, &ktx2_name, options.exposure));
+    if let Some(probes) = &baked.probes {
+        notices.extend(record_probes(&mut document, probes));
+    }
     materials::assign(
         &mut document,
         &rewritten,
@@ -239,6 +245,33 @@ fn record_lightmapped_nodes(
                                 unlit preview does",
             }),
         );
+    }
+    notices
+}
+
+/// Records `probes` (the probe volume's files and placement) in
+/// `extras.bake.probes` of every scene, where an engine's loader finds them
+/// with the file; a scene whose extras are not a JSON object keeps them,
+/// with a notice.
+fn record_probes(document: &mut Document, probes: &serde_json::Value) -> Vec<String> {
+    let count = document.json["scenes"].as_array().map_or(0, Vec::len);
+    let mut notices = Vec::new();
+    if count == 0 {
+        notices.push("the file has no scenes, so none names its light probes (extras.bake)".into());
+    }
+    for scene in 0..count {
+        let extras = &mut document.json["scenes"][scene]["extras"];
+        if extras.is_null() {
+            *extras = json!({});
+        }
+        match extras.as_object_mut() {
+            Some(extras) => {
+                extras.insert("bake".into(), json!({ "probes": probes }));
+            }
+            None => notices.push(format!(
+                "scene {scene}: its extras are not a JSON object, so they do not name its light probes (extras.bake)"
+            )),
+        }
     }
     notices
 }

@@ -46,6 +46,23 @@ pub fn encode_bin(probes: &Probes) -> Vec<u8> {
     probes.faces.iter().flatten().flatten().flat_map(|v| v.to_le_bytes()).collect()
 }
 
+/// What each scene of the baked glTF says of the probes
+/// (`extras.bake.probes`): the files, and the Transform of Bevy's unit-cube volume.
+pub fn gltf_record(name: &str, probes: &Probes) -> Value {
+    let [ktx2_name, json_name, bin_name] = file_names(name);
+    let (min, max) = (DVec3::from(probes.grid.min), DVec3::from(probes.grid.max));
+    json!({
+        "ktx2": ktx2_name,
+        "json": json_name,
+        "data": bin_name,
+        "counts": probes.grid.counts,
+        "translation": ((min + max) / 2.0).to_array(),
+        "scale": (max - min).to_array(),
+        "content": "ambient cubes (+X -X +Y -Y +Z -Z), irradiance over pi like the lightmap: Bevy's IrradianceVolume \
+                    with intensity 1 on an entity with this translation and scale",
+    })
+}
+
 /// The JSON header: the grid, the units, the layout of the binary, the
 /// buried probes and the Transform Bevy needs.
 pub fn encode_json(name: &str, probes: &Probes) -> Result<Vec<u8>> {

@@ -7,6 +7,7 @@ use bake::environment::{EnvironmentMap, LightMode};
 use bake::fixtures::{MeshData, Placement, SceneBuilder, six_wall_room};
 use bake::probes::{FACES, ProbeOptions, Probes};
 use bake::reference::{Reference, ReferenceOptions, ReferencePoint};
+use serde_json::json;
 
 use crate::common;
 
@@ -145,6 +146,13 @@ fn the_cli_writes_the_probe_files_and_check_guards_their_values() {
     let found: serde_json::Value = serde_json::from_str(&schema_check).unwrap();
     let errors = found.as_object().unwrap().values().flat_map(|v| v.as_array().unwrap()).count();
     assert_eq!(errors, 0, "the report does not follow its schema: {schema_check}");
+    let gltf = bake::asset::SourceAsset::load(&out.join("sphere_on_ground.glb")).unwrap().json;
+    let record = &gltf["scenes"][0]["extras"]["bake"]["probes"];
+    assert_eq!(
+        (&record["ktx2"], &record["data"]),
+        (&json!("sphere_on_ground.probes.ktx2"), &json!("sphere_on_ground.probes.bin"))
+    );
+    assert_eq!(record["translation"], header["bevy"]["translation"], "the glTF places the volume as the JSON does");
     let report = bake::check::read_report(&out.join("report.json")).unwrap();
     let stats = report.scenes[0].probes.as_ref().unwrap();
     assert_eq!((stats.probes as u64, stats.buried), (probes, buried.len()));
