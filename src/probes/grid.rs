@@ -10,6 +10,10 @@ use serde::{Deserialize, Serialize};
 /// certainly a unit mistake (millimetres for metres), and the volume would
 /// not fit an engine's 3D texture.
 pub const MAX_PROBES: u64 = 1 << 21;
+/// Most probes along x, y and z: Bevy's volume texture is (x, 2·y, 3·z)
+/// texels, and a 3D texture is at most 2048 wide on most GPUs (WebGPU's
+/// and wgpu's default limit).
+pub const MAX_COUNTS: [u32; 3] = [2048, 1024, 682];
 
 /// A box of `counts` cells, world coordinates (metres).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -46,6 +50,15 @@ impl Grid {
             );
         }
         let counts = cells.to_array().map(|c| c as u32);
+        if let Some(axis) = (0..3).find(|&k| counts[k] > MAX_COUNTS[k]) {
+            bail!(
+                "a probe spacing of {spacing} m makes {} probes along {}, more than the {} an engine's 3D texture \
+                 holds: raise --probes or narrow --probe-box",
+                counts[axis],
+                ["x", "y", "z"][axis],
+                MAX_COUNTS[axis]
+            );
+        }
         Ok(Grid { min: min.to_array(), max: max.to_array(), counts })
     }
 
@@ -110,5 +123,9 @@ mod tests {
         assert!(Grid::over(DVec3::ZERO, unit, 0.0).is_err());
         assert!(Grid::over(DVec3::ZERO, unit, f64::NAN).is_err());
         assert!(Grid::over(unit, DVec3::ZERO, 1.0).is_err());
+        // Few probes in all, but too many along one axis for a 3D texture.
+        let long = Grid::over(DVec3::ZERO, DVec3::new(0.0, 0.0, 700.0), 1.0).unwrap_err().to_string();
+        assert!(long.contains("700 probes along z"), "{long}");
+        assert!(Grid::over(DVec3::ZERO, DVec3::new(0.0, 0.0, 682.0), 1.0).is_ok());
     }
 }

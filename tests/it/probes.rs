@@ -157,6 +157,14 @@ fn the_cli_writes_the_probe_files_and_check_guards_their_values() {
     let stats = report.scenes[0].probes.as_ref().unwrap();
     assert_eq!((stats.probes as u64, stats.buried), (probes, buried.len()));
 
+    // Run to run, the same bytes.
+    let again = dir.path().join("again");
+    assert!(cli_bake(&again, &["--probes", "1.0"]).status.success());
+    for ext in ["ktx2", "bin"] {
+        let name = format!("sphere_on_ground.probes.{ext}");
+        assert_eq!(std::fs::read(out.join(&name)).unwrap(), std::fs::read(again.join(&name)).unwrap(), "{name}");
+    }
+
     let check = |dir: &Path| common::bake_command().arg("check").arg(dir.join("report.json")).output().unwrap();
     assert_eq!(check(&out).status.code(), Some(0), "{}", String::from_utf8_lossy(&check(&out).stdout));
     // A NaN or a negative face, a short file or none at all fails the check.
