@@ -459,15 +459,14 @@ fn bake_input(
             uv1_reused: baked.uv1_reused,
             probes: baked.probes.as_ref().map(|p| probes::write::gltf_record(&baked.scene.name, p)),
         };
-        let stats = export::run(&results, &config.bake.export, staging.dir())
+        let mut stats = export::run(&results, &config.bake.export, staging.dir())
             .with_context(|| format!("input '{}': export", input.display()))?;
+        if let Some(probes) = &baked.probes {
+            stats.files.extend(write_probes(&baked.scene.name, probes, staging.dir())?);
+        }
         let summary = format!("{} files", stats.files.len());
         Ok((stats, summary))
     })?;
-    let mut exported = exported;
-    if let Some(probes) = &baked.probes {
-        exported.files.extend(write_probes(&baked.scene.name, probes, staging.dir())?);
-    }
     let mut scene = scene_report(input, &baked, stages, exported, &config.bake, staging);
     if config.report.plot {
         let path = staging.dir().join(format!("{}.convergence.svg", scene.name));
