@@ -113,8 +113,33 @@ def section(binary, env_dir):
             "",
             *accuracy_rows(binary, envs, work),
             "",
+            *cycles_rows(os.path.join(ROOT, "benches/cycles_results.json")),
         ]
     return "\n".join(lines)
+
+
+def cycles_rows(path):
+    """The times to 2 % and 1 % against Blender Cycles from the last run of
+    benches/cycles.py (35 min, so not rerun here)."""
+    if not os.path.exists(path):
+        return []
+    with open(path) as f:
+        results = json.load(f)
+    mark = {"<=": "≤ ", "~": "~", "=": ""}
+    when = lambda t: "not reached" if t is None else f"{mark[t[0]]}{t[1]:.1f} s"
+    lines = [
+        "**Against Blender Cycles** (time to reach a relative RMSE against a converged Cycles bake; 128² atlases; "
+        f"from `{os.path.relpath(path, ROOT)}`, the last run of `benches/cycles.py`, whose commit, method and "
+        "caveats are in \"bake against Blender Cycles\" below):",
+        "",
+        "| scene | bake to 2 % | Cycles to 2 % | ratio | bake to 1 % | Cycles to 1 % | ratio |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in results:
+        cells = [cell for level in ("2%", "1%") for cell in
+                 (when(r["reached"][level][0]), when(r["reached"][level][1]), r["reached"][level][2])]
+        lines.append(f"| {r['name']} ({r['kind']}) | " + " | ".join(cells) + " |")
+    return lines + [""]
 
 
 def write(text):
