@@ -66,6 +66,18 @@ def stage_table(report, wall):
     return rows
 
 
+def probe_line(binary, work):
+    """The probe stage on the README's scene with a probe every 0.25 m."""
+    report, _ = bake(binary, ["fixtures/sphere_on_ground.glb", "--env", "fixtures/sky_sun.exr", "--max-atlas-size",
+                              "512", "--probes", "0.25"], os.path.join(work, "probes"))
+    p = report["scenes"][0]["probes"]
+    rays = p["probes"] * (p["rays"] + p["lights"] + p["punctual_lights"])
+    counts = "×".join(str(c) for c in p["grid"]["counts"])
+    return (f"**Light probes** (the README's bake with `--probes 0.25`): {counts} = {p['probes']:,} probes "
+            f"({p['buried']:,} buried), {p['rays']:,} gather rays and {p['lights']:,} light rays each, "
+            f"{p['seconds']:.2f} s ({rays / p['seconds'] / 1e6:.1f} M rays/s).")
+
+
 def accuracy_rows(binary, envs, work):
     rows = [
         "| scene | environment | error | reference noise | direct (s) | bounce (s) | solve (s) |",
@@ -107,6 +119,8 @@ def section(binary, env_dir):
             "**The README's bake** (sphere_on_ground, 512² atlas, sky_sun, 1,024 lights), by stage:",
             "",
             *stage_table(readme, wall),
+            "",
+            probe_line(binary, work),
             "",
             "**Error against the CPU path tracer** (each fixture at 128², 256 lights; relative RMSE over 512 texels "
             "× 4,096 paths, `--reference 512 --reference-samples 4096`):",
