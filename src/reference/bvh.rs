@@ -304,14 +304,33 @@ impl Bvh {
             let top = DVec3::select(face.cmpgt(DVec3::ZERO), hi, lo);
             centre.clamp(lo, hi).distance(centre) <= radius + slack && (top - centre).dot(face) >= -slack
         };
-        let mut stack = vec![0u32];
-        while let Some(n) = stack.pop() {
+        // Nodes to visit: a fixed array, and a list only past its depth (one
+        // call per texel: no allocation in the common case).
+        let (mut stack, mut len, mut deeper) = ([0u32; STACK], 1usize, Vec::new());
+        loop {
+            let n = match len {
+                0 => match deeper.pop() {
+                    Some(n) => n,
+                    None => break,
+                },
+                _ => {
+                    len -= 1;
+                    stack[len]
+                }
+            };
             let node = &self.nodes[n as usize];
             if !reaches(node.lo, node.hi) {
                 continue;
             }
             if node.count == 0 {
-                stack.extend([node.start, node.start + 1]);
+                for child in [node.start, node.start + 1] {
+                    if len < STACK {
+                        stack[len] = child;
+                        len += 1;
+                    } else {
+                        deeper.push(child);
+                    }
+                }
                 continue;
             }
             let leaf = &self.triangles[node.start as usize..(node.start + node.count) as usize];
