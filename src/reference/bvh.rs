@@ -452,6 +452,46 @@ mod tests {
         assert!(near > 100 && clear > 100, "{near} near, {clear} clear");
     }
 
+    /// Depth of the deepest leaf.
+    fn depth(bvh: &Bvh, node: u32) -> usize {
+        let n = &bvh.nodes[node as usize];
+        if n.count > 0 { 1 } else { 1 + depth(bvh, n.start).max(depth(bvh, n.start + 1)) }
+    }
+
+    #[test]
+    fn a_tree_deeper_than_the_fixed_stack_is_searched_to_its_bottom() {
+        // Triangles halving in size and distance towards the origin from −x:
+        // each split cuts off the largest, so the tree is a chain, and the
+        // walk keeps every cut-off leaf to visit on its way down.
+        let triangles: Vec<Triangle> = (0..400)
+            .map(|k| {
+                let s = 0.5f64.powi(k);
+                let a = DVec3::new(-1.4 * s, 0.0, 0.0);
+                let (e1, e2) = (DVec3::new(0.4 * s, 0.0, 0.0), DVec3::new(0.0, 0.0, 0.4 * s));
+                Triangle {
+                    v0: a,
+                    e1,
+                    e2,
+                    face: DVec3::Y,
+                    normals: None,
+                    material: 0,
+                    primitive: 0,
+                    texcoords: NO_TEXCOORDS,
+                }
+            })
+            .collect();
+        let bvh = Bvh::new(triangles);
+        assert!(depth(&bvh, 0) > STACK, "the chain is only {} deep", depth(&bvh, 0));
+        // Near the origin the walk goes down the whole chain (every box
+        // there is within the query's rounding slack); far above, nothing.
+        let origin = DVec3::new(0.0, 1e-12, 0.0);
+        assert!(bvh.any_near_above(origin, 1e-12, DVec3::NEG_Y), "the triangles at the chain's bottom are found");
+        assert!(
+            !bvh.any_near_above(DVec3::new(-1.0, 0.5, -1.0), 0.5, DVec3::NEG_Y),
+            "nothing reaches a point a metre off"
+        );
+    }
+
     #[test]
     fn bvh_agrees_with_brute_force() {
         let mut rng = Rng::new(&[42]);
