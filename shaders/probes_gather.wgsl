@@ -18,7 +18,7 @@
 // grown by a ring so a hit on a chart's edge never reads an empty texel.
 @group(0) @binding(5) var<storage, read> radiance: array<vec4f>;
 // Per (probe, workgroup): the six faces' sums, then (back-face hits,
-// walks cut short, nodes visited, 0).
+// walks cut short, 0, 0).
 @group(0) @binding(6) var<storage, read_write> probe_sums: array<ProbeSums>;
 
 // Mirrors `gather::ProbeParams`.
@@ -109,7 +109,7 @@ fn lane_sums(p: vec3f, lane: u32) -> ProbeSums {
             }
         }
     }
-    sums.counts = vec4f(back, select(0.0, 1.0, trace_cut), f32(trace_visits), 0.0);
+    sums.counts = vec4f(back, select(0.0, 1.0, trace_cut), 0.0, 0.0);
     return sums;
 }
 

@@ -347,16 +347,18 @@ impl Gpu {
         })
     }
 
-    /// A storage buffer holding `parts` one after another (at least 16 bytes,
-    /// zero-padded), written straight into the mapped buffer (no joined copy
-    /// on the CPU).
+    /// A storage buffer holding `parts` one after another (at least one `T`
+    /// and 16 bytes, zero-padded: a binding smaller than one element of its
+    /// array is refused at dispatch), written straight into the mapped
+    /// buffer (no joined copy on the CPU).
     pub fn storage_buffer_of_parts<T: bytemuck::Pod>(
         &self,
         label: &str,
         parts: &[&[T]],
         extra: wgpu::BufferUsages,
     ) -> wgpu::Buffer {
-        let size = (parts.iter().map(|p| std::mem::size_of_val(*p)).sum::<usize>() as u64).max(16);
+        let size = parts.iter().map(|p| std::mem::size_of_val(*p)).sum::<usize>();
+        let size = size.max(std::mem::size_of::<T>()).max(16) as u64;
         let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size: size.next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT),
@@ -377,8 +379,8 @@ impl Gpu {
         buffer
     }
 
-    /// A storage buffer of `count` zeroed elements of `T` (wgpu zeroes new
-    /// buffers: nothing is built on the CPU or uploaded).
+    /// A storage buffer of `count` zeroed elements of `T`, at least one (wgpu
+    /// zeroes new buffers: nothing is built on the CPU or uploaded).
     pub fn zeroed_storage_buffer<T: bytemuck::Pod>(
         &self,
         label: &str,
@@ -387,14 +389,14 @@ impl Gpu {
     ) -> wgpu::Buffer {
         self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
-            size: ((count * std::mem::size_of::<T>()) as u64).max(16),
+            size: (count.max(1) * std::mem::size_of::<T>()).max(16) as u64,
             usage: wgpu::BufferUsages::STORAGE | extra,
             mapped_at_creation: false,
         })
     }
 
-    /// A storage buffer initialised with `data` (at least 16 bytes, so empty
-    /// inputs still bind).
+    /// A storage buffer initialised with `data` (at least one `T` and 16
+    /// bytes, so empty inputs still bind).
     pub fn storage_buffer<T: bytemuck::Pod>(&self, label: &str, data: &[T], extra: wgpu::BufferUsages) -> wgpu::Buffer {
         self.storage_buffer_of_parts(label, &[data], extra)
     }

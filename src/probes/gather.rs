@@ -69,7 +69,6 @@ pub struct Gathered {
 pub struct GatherCounts {
     /// Walks stopped at their longest (the ray counted as blocked).
     pub cut_walks: u64,
-    pub visits: u64,
 }
 
 /// The pass: its pipeline and the layout of its own bind group (group 0;
@@ -133,9 +132,7 @@ impl GatherPass {
     ) -> Result<(Vec<Gathered>, GatherCounts)> {
         let extra = wgpu::BufferUsages::empty();
         let lights: Vec<ProbeLight> = lights.iter().map(probe_light).collect();
-        // A binding holds at least one element, used or not.
-        let padded = if lights.is_empty() { vec![ProbeLight::zeroed()] } else { lights.clone() };
-        let lights_buffer = gpu.storage_buffer("probe lights", &padded, extra);
+        let lights_buffer = gpu.storage_buffer("probe lights", &lights, extra);
         let directions = gpu.storage_buffer("probe directions", &sphere_directions(rays), extra);
         let uvs = gpu.storage_buffer("probe triangle uvs", &triangle_uvs(solved.scene, solved.atlas), extra);
         let radiance = gpu.storage_buffer("probe radiance", &outgoing_radiance(solved.texels, solved.solution), extra);
@@ -188,7 +185,6 @@ fn add_up(groups: &[ProbeSums], counts: &mut GatherCounts) -> Gathered {
         }
         gathered.back_hits += sums.counts[0] as u32;
         counts.cut_walks += sums.counts[1] as u64;
-        counts.visits += sums.counts[2] as u64;
     }
     gathered
 }
