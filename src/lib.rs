@@ -120,7 +120,11 @@ pub fn bake_scene(
         progress.notice(&notice);
         notices.push(notice);
     }
-    let probe_grid = options.probes.as_ref().map(|p| probes::grid_for(&scene, p).context("--probes")).transpose()?;
+    // The probe grid, known before the solve so a bad spacing fails at once.
+    let probe_plan = match &options.probes {
+        Some(p) => Some((p, probes::grid_for(&scene, p).context("--probes")?)),
+        None => None,
+    };
     let (atlas, uv1_reused) = stage(gpu, progress, &mut stages, &name, "unwrap", |_| unwrap_scene(&scene, options))?;
     for notice in &atlas.notices {
         progress.notice(notice);
@@ -151,8 +155,8 @@ pub fn bake_scene(
         let summary = solve_summary(&solution, &texels);
         Ok((solution, summary))
     })?;
-    let probes = match (&options.probes, probe_grid) {
-        (Some(probe_options), Some(grid)) => Some(stage(gpu, progress, &mut stages, &name, "probes", |progress| {
+    let probes = match probe_plan {
+        Some((probe_options, grid)) => Some(stage(gpu, progress, &mut stages, &name, "probes", |progress| {
             let solved = probes::Solved { scene: &scene, atlas: &atlas, texels: &texels, solution: &solution };
             let probes = probes::run(gpu, &solved, lights, grid, probe_options, &mut |d, t| progress.update(d, t))?;
             let s = &probes.stats;
@@ -160,7 +164,7 @@ pub fn bake_scene(
             let summary = format!("{nx}×{ny}×{nz} probes, {} buried, {} rays each", s.buried, s.rays + s.lights as u32);
             Ok((probes, summary))
         })?),
-        _ => None,
+        None => None,
     };
     let reference = reference.map(|(probes, noise, seconds)| report::ReferenceReport {
         texels: probes.texels.len(),

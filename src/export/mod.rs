@@ -221,11 +221,7 @@ fn record_lightmapped_nodes(
     for (node, mut drawn) in primitives {
         drawn.sort_unstable();
         drawn.dedup();
-        let extras = &mut document.json["nodes"][node]["extras"];
-        if extras.is_null() {
-            *extras = json!({});
-        }
-        let Some(extras) = extras.as_object_mut() else {
+        let Some(extras) = extras_object(&mut document.json["nodes"][node]["extras"]) else {
             notices.push(format!(
                 "node {node}: its extras are not a JSON object, so they do not name its KTX2 lightmap (extras.bake)"
             ));
@@ -260,11 +256,7 @@ fn record_probes(document: &mut Document, probes: &serde_json::Value) -> Vec<Str
         notices.push("the file has no scenes, so none names its light probes (extras.bake)".into());
     }
     for scene in 0..count {
-        let extras = &mut document.json["scenes"][scene]["extras"];
-        if extras.is_null() {
-            *extras = json!({});
-        }
-        match extras.as_object_mut() {
+        match extras_object(&mut document.json["scenes"][scene]["extras"]) {
             Some(extras) => {
                 extras.insert("bake".into(), json!({ "probes": probes }));
             }
@@ -274,6 +266,15 @@ fn record_probes(document: &mut Document, probes: &serde_json::Value) -> Vec<Str
         }
     }
     notices
+}
+
+/// `extras` as a JSON object to add to, made one where it was absent;
+/// `None` where the input holds something else there (kept as it is).
+fn extras_object(extras: &mut serde_json::Value) -> Option<&mut serde_json::Map<String, serde_json::Value>> {
+    if extras.is_null() {
+        *extras = json!({});
+    }
+    extras.as_object_mut()
 }
 
 /// Writes a file that must not exist yet: two outputs of one run never share a name.

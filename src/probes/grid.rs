@@ -90,6 +90,13 @@ impl Grid {
         min + (max - min) * (cell + 0.5) / counts
     }
 
+    /// The box's centre and size: the translation and scale of a Transform
+    /// that stretches Bevy's unit-cube volume over it.
+    pub fn centre_and_size(&self) -> ([f64; 3], [f64; 3]) {
+        let (min, max) = (DVec3::from(self.min), DVec3::from(self.max));
+        (((min + max) / 2.0).to_array(), (max - min).to_array())
+    }
+
     /// The distance between neighbouring probes along each axis.
     pub fn spacing(&self) -> [f64; 3] {
         [0, 1, 2].map(|k| (self.max[k] - self.min[k]) / f64::from(self.counts[k]))

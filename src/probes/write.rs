@@ -12,7 +12,6 @@
 //!   laid out.
 
 use anyhow::Result;
-use glam::DVec3;
 use serde_json::{Value, json};
 
 use super::{FACES, Probes};
@@ -50,14 +49,14 @@ pub fn encode_bin(probes: &Probes) -> Vec<u8> {
 /// (`extras.bake.probes`): the files, and the Transform of Bevy's unit-cube volume.
 pub fn gltf_record(name: &str, probes: &Probes) -> Value {
     let [ktx2_name, json_name, bin_name] = file_names(name);
-    let (min, max) = (DVec3::from(probes.grid.min), DVec3::from(probes.grid.max));
+    let (translation, scale) = probes.grid.centre_and_size();
     json!({
         "ktx2": ktx2_name,
         "json": json_name,
         "data": bin_name,
         "counts": probes.grid.counts,
-        "translation": ((min + max) / 2.0).to_array(),
-        "scale": (max - min).to_array(),
+        "translation": translation,
+        "scale": scale,
         "content": "ambient cubes (+X -X +Y -Y +Z -Z), irradiance over pi like the lightmap: Bevy's IrradianceVolume \
                     with intensity 1 on an entity with this translation and scale",
     })
@@ -68,7 +67,7 @@ pub fn gltf_record(name: &str, probes: &Probes) -> Value {
 pub fn encode_json(name: &str, probes: &Probes) -> Result<Vec<u8>> {
     let grid = &probes.grid;
     let [ktx2_name, _, bin_name] = file_names(name);
-    let (min, max) = (DVec3::from(grid.min), DVec3::from(grid.max));
+    let (translation, scale) = grid.centre_and_size();
     let buried: Vec<usize> = (0..grid.len()).filter(|&i| probes.buried[i]).collect();
     let header: Value = json!({
         "format": "bake irradiance volume",
@@ -88,8 +87,8 @@ pub fn encode_json(name: &str, probes: &Probes) -> Result<Vec<u8>> {
         "bevy": {
             "ktx2": ktx2_name,
             "component": "IrradianceVolume { voxels: the KTX2, intensity: 1.0 }: the same units as the KTX2 lightmap",
-            "translation": ((min + max) / 2.0).to_array(),
-            "scale": (max - min).to_array(),
+            "translation": translation,
+            "scale": scale,
         },
     });
     Ok(serde_json::to_vec_pretty(&header)?)
