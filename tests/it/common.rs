@@ -205,3 +205,38 @@ pub fn ground_under_a_canopy(
     let under_right = mean(&|p| p.x > 0.5 && p.x < 1.5 && p.z.abs() < 1.5);
     (under_left, under_right, mean(&|p| p.x.abs() > 3.0))
 }
+
+/// A KTX2 file as bake writes it (a lightmap, or a probe volume): its
+/// width, height, depth (0 for a 2D image) and texels (row by row from the
+/// first, slice by slice), after checking its header and data format
+/// descriptor.
+pub fn read_ktx2(bytes: &[u8]) -> (usize, usize, usize, Vec<[f32; 3]>) {
+    use ::ktx2::{ColorModel, ColorPrimaries, Format, SupercompressionScheme, TransferFunction};
+    let reader = ::ktx2::Reader::new(bytes).expect("the ktx2 crate reads it");
+    let header = reader.header();
+    assert_eq!(header.format, Some(Format::E5B9G9R9_UFLOAT_PACK32));
+    assert_eq!((header.type_size, header.layer_count, header.face_count), (4, 0, 1));
+    assert_eq!(header.level_count, 1, "one mip level");
+    assert_eq!(header.supercompression_scheme, Some(SupercompressionScheme::Zstandard));
+    let dfd = reader.basic_dfd().expect("a basic descriptor block");
+    assert_eq!(reader.dfd_blocks().len(), 1);
+    assert_eq!(dfd.color_model, Some(ColorModel::RGBSDA));
+    assert_eq!(dfd.color_primaries, Some(ColorPrimaries::BT709));
+    assert_eq!(dfd.transfer_function, Some(TransferFunction::Linear), "linear, not sRGB");
+    assert_eq!(dfd.bytes_planes[0], 4);
+    // R, G, B mantissas at bits 0, 9 and 18, each with the exponent at 27.
+    let samples: Vec<(u16, u8, u8)> =
+        dfd.sample_information.iter().map(|s| (s.bit_offset, s.bit_length.get(), s.channel_type)).collect();
+    assert_eq!(samples, [(0, 9, 0), (27, 5, 0), (9, 9, 1), (27, 5, 1), (18, 9, 2), (27, 5, 2)]);
+    assert!(reader.writer().is_some_and(|w| w.starts_with("bake ")), "{:?}", reader.writer());
+    let (width, height, depth) =
+        (header.pixel_width as usize, header.pixel_height as usize, header.pixel_depth as usize);
+    let level = reader.levels().next().unwrap();
+    assert_eq!(level.uncompressed_byte_length as usize, width * height * depth.max(1) * 4);
+    let mut texels = Vec::new();
+    let mut decoder = ruzstd::decoding::StreamingDecoder::new(level.data).expect("a Zstandard frame");
+    std::io::Read::read_to_end(&mut decoder, &mut texels).expect("the level decompresses");
+    assert_eq!(texels.len(), width * height * depth.max(1) * 4);
+    let unpack = |t: &[u8]| bake::export::ktx2::unpack_e5b9g9r9(u32::from_le_bytes(t.try_into().unwrap()));
+    (width, height, depth, texels.chunks_exact(4).map(unpack).collect())
+}

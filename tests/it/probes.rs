@@ -56,16 +56,9 @@ fn probes_over_an_open_field_see_the_sky_above_the_ground_below_and_half_of_each
     // Bevy's layout: probe (x, y, z)'s face along axis a at (x, y + Ry if it
     // looks down the axis, z + a·Rz) of a (Rx, 2Ry, 3Rz) volume.
     let ktx2 = bake::probes::write::encode_ktx2(probes).unwrap();
-    let reader = ktx2::Reader::new(ktx2.as_slice()).unwrap();
-    let header = reader.header();
-    assert_eq!((header.pixel_width, header.pixel_height, header.pixel_depth), (2, 4, 6));
-    assert_eq!(header.format, Some(ktx2::Format::E5B9G9R9_UFLOAT_PACK32));
-    let level = reader.levels().next().unwrap();
-    let texels = ruzstd_decode(level.data);
-    let at = |s: usize, t: usize, p: usize| {
-        let i = 4 * (s + 2 * (t + 4 * p));
-        bake::export::ktx2::unpack_e5b9g9r9(u32::from_le_bytes(texels[i..i + 4].try_into().unwrap()))[0]
-    };
+    let (width, height, depth, texels) = common::read_ktx2(&ktx2);
+    assert_eq!((width, height, depth), (2, 4, 6));
+    let at = |s: usize, t: usize, p: usize| texels[s + 2 * (t + 4 * p)][0];
     let close = |value: f32, want: f32| (value / want - 1.0).abs() < 0.012;
     for (x, y, z) in [(0, 0, 0), (1, 1, 1), (0, 1, 0)] {
         assert!(close(at(x, y, 2 + z), sky), "+Y of ({x},{y},{z}): {}", at(x, y, 2 + z));
@@ -74,20 +67,12 @@ fn probes_over_an_open_field_see_the_sky_above_the_ground_below_and_half_of_each
     }
 }
 
-fn ruzstd_decode(data: &[u8]) -> Vec<u8> {
-    use std::io::Read;
-    let mut decoder = ruzstd::decoding::StreamingDecoder::new(data).unwrap();
-    let mut out = Vec::new();
-    decoder.read_to_end(&mut out).unwrap();
-    out
-}
-
 #[test]
 fn probes_in_a_room_lit_by_its_ceiling_and_a_lamp_agree_with_the_path_tracer() {
     let gpu = common::gpu();
     // Floor, ceiling (glowing), −X (dark), +X, −Z, +Z: every face of a probe differs.
     let mut builder = six_wall_room([(0.7, 0.0), (0.5, 2.0), (0.2, 0.0), (0.8, 0.0), (0.5, 0.0), (0.6, 0.0)]);
-    let lamp = serde_json::json!({ "type": "point", "intensity": 1.0 });
+    let lamp = json!({ "type": "point", "intensity": 1.0 });
     builder.light("lamp", lamp, Placement::at(glam::Vec3::new(0.1, 0.2, -0.2)));
     let mut options = with_probes(48, 0.8, [[-0.8, -0.8, -0.8], [0.8, 0.8, 0.8]]);
     options.solve.bounce.patches = 256;
