@@ -124,6 +124,12 @@ fn the_cli_writes_the_probe_files_and_check_guards_their_values() {
     let probes: u64 = counts.iter().product();
     let buried = header["buried"].as_array().unwrap();
     assert!(!buried.is_empty(), "probes inside the sphere are flagged");
+    // ... and hold their neighbours' light, not the black inside the sphere.
+    let values = std::fs::read(out.join("sphere_on_ground.probes.bin")).unwrap();
+    let value = |k: usize| f32::from_le_bytes(values[4 * k..4 * k + 4].try_into().unwrap());
+    for i in buried.iter().map(|b| b.as_u64().unwrap() as usize) {
+        assert!((0..18).all(|k| value(18 * i + k) > 0.0), "buried probe {i} is shipped black");
+    }
     let schema_check = common::node(
         "pipeline/schema.mjs",
         &[common::repo("schema/report.schema.json").as_os_str(), out.join("report.json").as_os_str()],
