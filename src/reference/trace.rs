@@ -8,7 +8,10 @@
 //! continues the path: if it escapes it sees the environment (MIS-weighted);
 //! if it reaches the front of a surface it sees that surface's emission
 //! (unweighted: emitters are only found this way) plus its albedo times its
-//! own incident light, estimated recursively from the new vertex. Albedo and
+//! own incident light, estimated recursively from the new vertex. Emitters
+//! are sampled at every vertex as well (a point on an emissive triangle and
+//! a shadow ray to it), MIS-weighted against the cosine rays that hit them.
+//! Albedo and
 //! emission are the material's factors times its textures at the hit; both
 //! kinds of ray pass through alpha cut-outs as if the surface were absent.
 
@@ -22,6 +25,10 @@ use super::sampling::{Rng, cosine_hemisphere};
 
 /// Surface interactions after which Russian roulette starts.
 const ROULETTE_AFTER: u32 = 3;
+/// An emitter's shadow ray stops this share of the distance short of the
+/// point drawn, so that the emitter's own triangle (or its neighbour, met at
+/// the shared edge) does not block it.
+const SHADOW_SHORT: f64 = 1e-7;
 
 /// Whether `direction` points behind the plane of unit normal `face`.
 fn behind(face: Option<DVec3>, direction: DVec3) -> bool {
@@ -114,6 +121,9 @@ impl Reference {
                     result += beta * s.radiance * weight;
                 }
             }
+            if !self.emitters.is_empty() {
+                result += beta * self.emitter_light(origin, normal, face, skip, rng);
+            }
             // Continue along a cosine-distributed direction.
             let (direction, cos) = cosine_hemisphere(normal, rng.next_f64(), rng.next_f64());
             if cos <= 0.0 || behind(face, direction) {
@@ -137,7 +147,11 @@ impl Reference {
                 n = -n;
             }
             let surface = self.surface_at(tri, hit.u, hit.v);
-            result += beta * surface.emission;
+            if surface.emission != DVec3::ZERO {
+                let cos_emitter = direction.dot(tri.face).abs();
+                let pdf_light = self.emitters.pdf_solid_angle(&self.bvh.triangles, hit.triangle, hit.t, cos_emitter);
+                result += beta * surface.emission * balance(cos * FRAC_1_PI, pdf_light);
+            }
             if bounce == self.max_bounces {
                 break;
             }
@@ -160,5 +174,44 @@ impl Reference {
             face = None;
         }
         result
+    }
+
+    /// Next-event estimation towards the emitters at a vertex: one point
+    /// drawn on an emissive triangle, its emission if the point sees its
+    /// front (either side of a double-sided one) unblocked, weighted
+    /// against the cosine ray's chance of finding it.
+    fn emitter_light(
+        &self,
+        origin: DVec3,
+        normal: DVec3,
+        face: Option<DVec3>,
+        skip: Option<u32>,
+        rng: &mut Rng,
+    ) -> DVec3 {
+        let triangles = &self.bvh.triangles;
+        let s = self.emitters.sample(triangles, [rng.next_f64(), rng.next_f64(), rng.next_f64()]);
+        if Some(s.triangle) == skip {
+            return DVec3::ZERO;
+        }
+        let tri = &triangles[s.triangle as usize];
+        let to = tri.point(s.u, s.v) - origin;
+        let distance = to.length();
+        let direction = to / distance;
+        let cos = direction.dot(normal);
+        let cos_emitter = direction.dot(tri.face).abs();
+        if !(cos > 0.0 && cos_emitter > 0.0) || behind(face, direction) {
+            return DVec3::ZERO;
+        }
+        let from_behind = direction.dot(tri.front_normal(s.u, s.v)) >= 0.0;
+        if (from_behind && !self.materials[tri.material as usize].double_sided) || !self.solid(tri, s.u, s.v) {
+            return DVec3::ZERO;
+        }
+        let emission = self.surface_at(tri, s.u, s.v).emission;
+        if emission == DVec3::ZERO || self.occluded_within(origin, direction, distance * (1.0 - SHADOW_SHORT), skip) {
+            return DVec3::ZERO;
+        }
+        let pdf_light = s.pdf_area * distance * distance / cos_emitter;
+        let pdf_cos = cos * FRAC_1_PI;
+        emission * (pdf_cos / pdf_light) * balance(pdf_light, pdf_cos)
     }
 }

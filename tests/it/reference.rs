@@ -227,7 +227,7 @@ fn a_bounce_cap_cuts_the_closed_rooms_series_after_as_many_reflections() {
     // Every path from a wall of a closed emitting room meets a wall at once:
     // with light that took more than k reflections dropped, L = Le·Σ_{i≤k} ρ^i.
     // With k = 0 (the direct light alone, as the per-vertex bench compares)
-    // and 1 no path is ended at random, so the answer is exact.
+    // and 1 no path is ended at random.
     let (albedo, le) = (0.5f64, 0.6f32);
     let scene = closed_room(albedo as f32, le);
     let mut points: Vec<ReferencePoint> = surface_points(&scene, 3, 5).iter().map(|p| p.point).collect();
@@ -236,13 +236,7 @@ fn a_bounce_cap_cuts_the_closed_rooms_series_after_as_many_reflections() {
         let reference = Reference::new(&scene, None, &ReferenceOptions { max_bounces, ..options(4096) });
         let expected = le as f64 * (0..=max_bounces).map(|i| albedo.powi(i as i32)).sum::<f64>();
         for e in reference.estimate(&points) {
-            if max_bounces <= 1 {
-                for v in e.lightmap {
-                    assert!((v - expected).abs() <= 1e-9 * expected, "{max_bounces} bounces: {v}, expected {expected}");
-                }
-            } else {
-                check(&format!("room, {max_bounces} bounces"), &e, [expected; 3], 4.0, 0.02);
-            }
+            check(&format!("room, {max_bounces} bounces"), &e, [expected; 3], 4.0, 0.02);
         }
     }
 }
@@ -292,11 +286,13 @@ fn form_factor_of_facing_squares() {
     eprintln!("view factor 0.6×2.2 at 0.7: closed form {closed2:.8}, numeric {numeric2:.8}");
     assert!((closed2 - numeric2).abs() < 1e-6);
 
+    // Emitters are sampled at every vertex: 4,096 paths land within 1 %
+    // (found only by cosine rays, their standard error was about 3 %).
     let le = 5.0f32;
     let scene = facing_squares(Quat::from_rotation_x(PI as f32), le);
-    let reference = Reference::new(&scene, None, &options(65536));
+    let reference = Reference::new(&scene, None, &options(4096));
     let e = reference.estimate(&[point([0.0; 3], [0.0, 1.0, 0.0])])[0];
-    check("form factor", &e, [le as f64 * closed; 3], 4.0, 0.02);
+    check("form factor", &e, [le as f64 * closed; 3], 4.0, 0.01);
 }
 
 #[test]
@@ -311,8 +307,8 @@ fn back_of_single_sided_emitter_is_black() {
     for m in &mut scene.materials {
         m.double_sided = true;
     }
-    let e = Reference::new(&scene, None, &options(65536)).estimate(&p)[0];
-    check("double-sided emitter from behind", &e, [le as f64 * view_factor(0.5, 0.5, 1.0); 3], 4.0, 0.02);
+    let e = Reference::new(&scene, None, &options(4096)).estimate(&p)[0];
+    check("double-sided emitter from behind", &e, [le as f64 * view_factor(0.5, 0.5, 1.0); 3], 4.0, 0.01);
 }
 
 /// Direction of the centre of pixel (row, col) of a W×H map.
@@ -468,7 +464,7 @@ fn emissive_texture_scales_the_form_factor() {
     ];
     for (name, texture, expected) in cases {
         let scene = textured_emitter(le, &texture);
-        let e = Reference::new(&scene, None, &options(262144)).estimate(&[point([0.0; 3], [0.0, 1.0, 0.0])])[0];
+        let e = Reference::new(&scene, None, &options(16384)).estimate(&[point([0.0; 3], [0.0, 1.0, 0.0])])[0];
         check(&format!("emissive texture, {name}"), &e, expected, 4.0, 0.02);
     }
 }
