@@ -31,6 +31,8 @@
 // Per texel: the share of its area that bounces light (src/solve/overlaps.rs):
 // its unshot light counts for that share of its area.
 @group(0) @binding(9) var<storage, read> shares: array<f32>;
+// Per member (`members`' order): its texel's position and area × share.
+@group(0) @binding(10) var<storage, read> member_points: array<vec4f>;
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -43,15 +45,13 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     var received = 0.0;
     var weighted = vec3f(0.0);
     var weight = 0.0;
-    for (var m = 0u; m < own.count; m++) {
-        let i = members[own.first + m];
-        let u = unshot[i];
-        let texel = texels[i];
-        let area = texel.area * shares[i];
-        power += u.rgb * area;
+    for (var m = own.first; m < own.first + own.count; m++) {
+        let u = unshot[members[m]];
+        let point = member_points[m];
+        power += u.rgb * point.w;
         received += u.w;
-        let w = luminance(u.rgb) * area;
-        weighted += w * texel.position;
+        let w = luminance(u.rgb) * point.w;
+        weighted += w * point.xyz;
         weight += w;
     }
     patch_power[j] = vec4f(power, received);

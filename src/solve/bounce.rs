@@ -290,6 +290,9 @@ struct Resources {
     /// Per patch: the covered share of its texels' hemispheres.
     patch_coverage: wgpu::Buffer,
     members: wgpu::Buffer,
+    /// Per patch member, in `members`' order: its texel's position and its
+    /// area that bounces (area × share), read in order by the power pass.
+    member_points: wgpu::Buffer,
     unshot: wgpu::Buffer,
     lightmap: wgpu::Buffer,
     patch_power: wgpu::Buffer,
@@ -865,6 +868,7 @@ fn resources(
         patches: gpu.storage_buffer("solve_select patches", &patches.patches, none),
         patch_coverage: gpu.storage_buffer("solve_select patch coverage", patch_coverage, none),
         members: gpu.storage_buffer("solve_patch_power members", &patches.members, none),
+        member_points: gpu.storage_buffer("solve_patch_power member points", &member_points(inputs), none),
         unshot: gpu.storage_buffer("solve_shoot unshot", unshot, wgpu::BufferUsages::COPY_SRC),
         lightmap: gpu.storage_buffer("solve_shoot lightmap", &lightmap4, wgpu::BufferUsages::COPY_SRC),
         patch_power: gpu.zeroed_storage_buffer::<[f32; 4]>("solve_patch_power power", patches.patches.len(), none),
@@ -972,6 +976,8 @@ fn power_bindings(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> (wgp
             gpu::storage_entry(8, false, compute),
             // 9: each texel's share of the area that bounces
             gpu::storage_entry(9, true, compute),
+            // 10: each member's position and bouncing area
+            gpu::storage_entry(10, true, compute),
         ],
     );
     let group = gpu::bind_buffers(
@@ -989,9 +995,21 @@ fn power_bindings(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> (wgp
             &r.shooters,
             &r.shooter_cells,
             &r.shares,
+            &r.member_points,
         ],
     );
     (layout, group)
+}
+
+/// `Resources::member_points`: the patch members' texels' positions and
+/// bouncing areas in the members' order, so that the power pass, run every
+/// batch, reads them in order rather than whole texels by index.
+fn member_points(inputs: &Inputs) -> Vec<[f32; 4]> {
+    let points = inputs.patches.members.iter().map(|&i| {
+        let t = &inputs.texels.texels[i as usize];
+        [t.position[0], t.position[1], t.position[2], t.area * inputs.shares[i as usize]]
+    });
+    points.collect()
 }
 
 /// `solve_select`'s bindings: the batch's shooters, their hemicube faces and
