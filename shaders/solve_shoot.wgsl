@@ -298,9 +298,6 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if (i >= params.texel_count) {
         return;
     }
-    let texel = texels[i];
-    var gathered = vec3f(0.0);
-    var near_slots = 0u;
     // The texel's own patch, if it shoots now, gives it nothing here (its
     // unshot light leaves; a curved one lights itself where it is concave,
     // `near_light`).
@@ -309,6 +306,15 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let own_slot = select(0u, chosen_as - 1u, shot);
     // Only the slots that may light the texel's group, in slot order.
     var slots = group_shooters[i / 64u];
+    if (slots == 0u && !shot) {
+        // Nothing reaches it and it keeps its light: only the record of
+        // what it received is cleared, and the texel is never read.
+        unshot[i].w = 0.0;
+        return;
+    }
+    let texel = texels[i];
+    var gathered = vec3f(0.0);
+    var near_slots = 0u;
     if (shot) {
         slots &= ~(1u << own_slot);
         if (is_curved(own_slot)) {
