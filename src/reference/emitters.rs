@@ -27,8 +27,6 @@ pub(super) struct EmitterSample {
     pub triangle: u32,
     pub u: f64,
     pub v: f64,
-    /// Density of the draw over area (1/m²).
-    pub pdf_area: f64,
 }
 
 impl Emitters {
@@ -60,7 +58,7 @@ impl Emitters {
     }
 
     /// A point on an emitter from three uniform numbers in [0, 1).
-    pub(super) fn sample(&self, triangles: &[Triangle], r: [f64; 3]) -> EmitterSample {
+    pub(super) fn sample(&self, r: [f64; 3]) -> EmitterSample {
         let total = *self.cumulative.last().expect("sampled only when there are emitters");
         let target = r[0] * total;
         let k = self.cumulative.partition_point(|&c| c <= target).min(self.triangles.len() - 1);
@@ -68,8 +66,7 @@ impl Emitters {
         // Uniform over the triangle: (1 − √r1, r2 √r1) as barycentrics of v1 and v2.
         let s = r[1].sqrt();
         let (u, v) = (1.0 - s, r[2] * s);
-        let pdf_area = self.pick[triangle as usize] / area(&triangles[triangle as usize]);
-        EmitterSample { triangle, u, v, pdf_area }
+        EmitterSample { triangle, u, v }
     }
 
     /// The density over solid angle, seen from `distance` away at cosine
@@ -122,12 +119,12 @@ mod tests {
         let mut counts = [0usize; 3];
         for i in 0..n {
             let x = (i as f64 + 0.5) / n as f64;
-            let s = emitters.sample(&triangles, [x, (x * 7.3).fract(), (x * 13.7).fract()]);
+            let s = emitters.sample([x, (x * 7.3).fract(), (x * 13.7).fract()]);
             counts[s.triangle as usize] += 1;
             assert!(s.u >= 0.0 && s.v >= 0.0 && s.u + s.v <= 1.0 + 1e-12);
-            // Over area: pick / area, the emission over the total power.
+            // Over area (seen head-on from 1 m): pick / area, the emission over the total power.
             let expected = if s.triangle == 0 { 2.0 * third } else { third };
-            assert!((s.pdf_area - expected).abs() < 1e-12);
+            assert!((emitters.pdf_solid_angle(&triangles, s.triangle, 1.0, 1.0) - expected).abs() < 1e-12);
         }
         assert_eq!(counts[1], 0);
         assert!((counts[0] as f64 / n as f64 - third).abs() < 1e-3);

@@ -1,19 +1,17 @@
 //! The path tracer: one Monte Carlo sample of the lightmap value at a point.
 //!
 //! At every vertex (the query point first, then each surface hit) the
-//! incident-light integral (1/π)∫L_in cos dω is estimated with two
-//! techniques combined by Veach's balance heuristic: a direction drawn
-//! from the environment's importance table (next-event estimation, with a
-//! shadow ray) and a cosine-distributed direction. The cosine direction also
-//! continues the path: if it escapes it sees the environment (MIS-weighted);
-//! if it reaches the front of a surface it sees that surface's emission
-//! (unweighted: emitters are only found this way) plus its albedo times its
-//! own incident light, estimated recursively from the new vertex. Emitters
-//! are sampled at every vertex as well (a point on an emissive triangle and
-//! a shadow ray to it), MIS-weighted against the cosine rays that hit them.
-//! Albedo and
-//! emission are the material's factors times its textures at the hit; both
-//! kinds of ray pass through alpha cut-outs as if the surface were absent.
+//! incident-light integral (1/π)∫L_in cos dω is estimated with techniques
+//! combined by Veach's balance heuristic: a direction drawn from the
+//! environment's importance table and a point drawn on an emissive triangle
+//! (next-event estimation, each with a shadow ray), and a cosine-distributed
+//! direction. The cosine direction also continues the path: if it escapes it
+//! sees the environment, if it reaches the front of a surface that surface's
+//! emission (both MIS-weighted against the light samples), plus the
+//! surface's albedo times its own incident light, estimated recursively from
+//! the new vertex. Albedo and emission are the material's factors times its
+//! textures at the hit; every kind of ray passes through alpha cut-outs as if
+//! the surface were absent.
 
 use std::f64::consts::FRAC_1_PI;
 
@@ -189,7 +187,7 @@ impl Reference {
         rng: &mut Rng,
     ) -> DVec3 {
         let triangles = &self.bvh.triangles;
-        let s = self.emitters.sample(triangles, [rng.next_f64(), rng.next_f64(), rng.next_f64()]);
+        let s = self.emitters.sample([rng.next_f64(), rng.next_f64(), rng.next_f64()]);
         if Some(s.triangle) == skip {
             return DVec3::ZERO;
         }
@@ -210,7 +208,7 @@ impl Reference {
         if emission == DVec3::ZERO || self.occluded_within(origin, direction, distance * (1.0 - SHADOW_SHORT), skip) {
             return DVec3::ZERO;
         }
-        let pdf_light = s.pdf_area * distance * distance / cos_emitter;
+        let pdf_light = self.emitters.pdf_solid_angle(triangles, s.triangle, distance, cos_emitter);
         let pdf_cos = cos * FRAC_1_PI;
         emission * (pdf_cos / pdf_light) * balance(pdf_light, pdf_cos)
     }
