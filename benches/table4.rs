@@ -614,7 +614,7 @@ fn bounce_scaling(gpu: &Gpu) -> Result<()> {
             &texels,
             options.solve.bounce.patches,
             1.0 / tpu,
-            Some(Sight { occluders: &bake::reference::Occluders::new(&scene), hidden: None }),
+            Some(Sight { occluders: &bake::trace::Surfaces::new(&scene), hidden: None }),
         );
         let mut bounce = options.solve.bounce.clone();
         bounce.max_shots = Some(SHOTS);

@@ -33,7 +33,7 @@ pub mod report;
 pub mod scene;
 pub mod solve;
 pub mod texelize;
-pub(crate) mod trace;
+pub mod trace;
 pub mod unwrap;
 
 use std::path::Path;

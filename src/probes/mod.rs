@@ -25,8 +25,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::environment::LightSet;
 use crate::gpu::Gpu;
-use crate::reference::Occluders;
 use crate::scene::Scene;
+use crate::trace::Surfaces;
 pub use gather::Solved;
 pub use grid::Grid;
 
@@ -153,8 +153,7 @@ fn punctual_light(scene: &Scene, positions: &[DVec3]) -> Option<Vec<[DVec3; 6]>>
     if scene.lights.is_empty() {
         return None;
     }
-    let occluders = Occluders::new(scene);
-    let surfaces = occluders.with_cut_outs();
+    let surfaces = Surfaces::new(scene);
     let at = |p: DVec3| {
         let mut faces = [DVec3::ZERO; 6];
         for light in &scene.lights {

@@ -10,7 +10,7 @@
 
 use glam::DVec3;
 
-use super::bvh::Triangle;
+use crate::trace::rays::Triangle;
 
 /// The emissive triangles of a scene and how to draw them.
 pub(super) struct Emitters {
@@ -104,7 +104,7 @@ mod tests {
             normals: None,
             material,
             primitive: 0,
-            texcoords: super::super::bvh::NO_TEXCOORDS,
+            texcoords: crate::trace::rays::NO_TEXCOORDS,
         }
     }
 

@@ -3,7 +3,11 @@
 //! stores, with a standard error. It shares none of the GPU path's
 //! approximations: no light extraction from the environment, no depth maps,
 //! no patches — exact ray–triangle intersection against every triangle
-//! (through a BVH) and the environment map at its full resolution.
+//! and the environment map at its full resolution. This module is only the
+//! estimator: its rays go through the crate's ray-tracing core
+//! (`trace::Surfaces`: the BVH, the casts, the alpha cut-outs), which the
+//! solve's CPU fix-ups share and which is tested against brute force over
+//! every triangle.
 //!
 //! # What is estimated
 //! For a point p with unit normal n (the receiving side) the lightmap value
@@ -63,7 +67,7 @@
 //!
 //! Textures are sampled at every hit's barycentrics through the triangle's
 //! UV sets and KHR_texture_transform, with the sampler's wrap mode per axis
-//! and bilinear filtering at the image's full resolution (`texture.rs`): no
+//! and bilinear filtering at the image's full resolution (`trace::texture`): no
 //! mip levels, since the Monte Carlo integral itself averages the texture
 //! over what the rays reach. Alpha cut-outs are tested inside the BVH
 //! traversal, after a triangle is hit and before it shortens the ray, so
@@ -99,26 +103,23 @@
 //! combined in order. Results depend on the seed and the inputs only, never
 //! on the number of threads.
 
-mod bvh;
 mod emitters;
 mod probes;
 mod sampling;
-mod texture;
 mod trace;
 
-use std::sync::Arc;
-
-use glam::{DVec2, DVec3};
+use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::environment::EnvironmentMap;
-use crate::scene::{LinearImage, PunctualLight, Scene, ScenePrimitive, TextureRef};
-use bvh::{Bvh, NO_TEXCOORDS, Triangle};
+use crate::scene::{PunctualLight, Scene};
+use crate::trace::random::Rng;
+use crate::trace::rays::Triangle;
+use crate::trace::surfaces::{Surfaces, Textures, scene_triangles, texture};
+use crate::trace::texture::Texture;
 use emitters::Emitters;
 pub use probes::{Probes, ReferenceCheck, reference_probes, reference_probes_within};
 use sampling::EnvSampler;
-pub(crate) use sampling::{Rng, basis, cosine_hemisphere};
-use texture::Texture;
 
 /// Samples per independent random stream (see the module's "Determinism").
 const CHUNK: u32 = 128;
@@ -199,51 +200,32 @@ pub struct SurfacePoint {
 /// What a surface does with light, in f64. The factors are glTF's, with
 /// non-finite channels read as 0; the textures multiply them and the
 /// products are clamped as the bake's texelize pass does (albedo to [0, 1],
-/// emission to ≥ 0).
+/// emission to ≥ 0). Whether the surface is there at all (alpha cut-outs)
+/// is `trace::Surfaces`' business.
 #[derive(Clone, Debug)]
 struct SurfaceMaterial {
     /// baseColorFactor RGB.
     base_color: DVec3,
-    /// baseColorFactor alpha, as given: the bake compares it (× the base
-    /// texture's alpha) with the cut-off unchanged.
-    alpha: f64,
     emission: DVec3,
     /// Only textures whose image was decoded: a missing one is white, as in
     /// the bake (`texture_ref` in gpu::materials).
     base_texture: Option<Texture>,
     emissive_texture: Option<Texture>,
-    /// alphaMode MASK's cut-off: the surface is absent where alpha < cut-off.
-    /// `None` for OPAQUE and BLEND (baked opaque) and for a negative or NaN
-    /// cut-off, which the bake's casters also treat as opaque (`is_masked`).
-    cutoff: Option<f64>,
     double_sided: bool,
 }
 
 impl SurfaceMaterial {
     /// `m` with its textures' images looked up in `image_slots` (scene image
-    /// index → index into the reference's images, `None` if not decoded).
+    /// index → index into the surfaces' images, `None` if not decoded).
     fn new(m: &crate::scene::Material, image_slots: &[Option<usize>]) -> SurfaceMaterial {
         let finite = |v: f32| if v.is_finite() { v as f64 } else { 0.0 };
-        let texture = |t: &Option<TextureRef>| {
-            let t = t.as_ref()?;
-            let image = image_slots.get(t.image).copied().flatten()?;
-            Some(Texture::new(t, image))
-        };
-        let cutoff = m.cutoff().filter(|&c| c >= 0.0).map(f64::from);
         SurfaceMaterial {
             base_color: DVec3::new(finite(m.base_color[0]), finite(m.base_color[1]), finite(m.base_color[2])),
-            alpha: m.base_color[3] as f64,
             emission: DVec3::from(m.emission.map(finite)),
-            base_texture: texture(&m.base_color_texture),
-            emissive_texture: texture(&m.emissive_texture),
-            cutoff,
+            base_texture: texture(&m.base_color_texture, image_slots),
+            emissive_texture: texture(&m.emissive_texture, image_slots),
             double_sided: m.double_sided,
         }
-    }
-
-    /// Whether shading a hit needs the triangle's texture coordinates.
-    fn is_textured(&self) -> bool {
-        self.base_texture.is_some() || self.emissive_texture.is_some()
     }
 }
 
@@ -264,130 +246,24 @@ struct SurfaceSample {
     emission: DVec3,
 }
 
-/// A triangle's TEXCOORD_0 and TEXCOORD_1 at its three vertices (source
-/// order, as `Triangle::v0`, `e1`, `e2`): `[set][vertex]`.
-type TriangleTexcoords = [[[f32; 2]; 3]; 2];
-
-/// The UV sets of triangle `t` of `p`. A set the primitive lacks (or whose
-/// length does not match its positions) is zero, as the bake's vertex
-/// buffers fill it (texelize and solve::casters).
-fn triangle_texcoords(p: &ScenePrimitive, t: usize) -> TriangleTexcoords {
-    let corners = [0, 1, 2].map(|k| p.indices[3 * t + k] as usize);
-    [&p.uv0, &p.uv1].map(|set| match set.as_ref().filter(|uv| uv.len() == p.positions.len()) {
-        Some(uv) => corners.map(|i| uv[i]),
-        None => [[0.0; 2]; 3],
-    })
-}
-
-/// COLOR_0 at triangle `t`'s corners of `p` (source order), clamped to
-/// [0, 1] as the bake's texelize pass does; white where the primitive has
-/// none (or one of another length).
-fn triangle_colors(p: &ScenePrimitive, t: usize) -> [DVec3; 3] {
-    let corners = [0, 1, 2].map(|k| p.indices[3 * t + k] as usize);
-    match p.colors.as_ref().filter(|c| c.len() == p.positions.len()) {
-        Some(c) => corners.map(|i| DVec3::from_array(c[i].map(f64::from)).clamp(DVec3::ZERO, DVec3::ONE)),
-        None => [DVec3::ONE; 3],
-    }
-}
-
-/// A scene prepared for reference estimates: a BVH over all its triangles
-/// (f64, per-triangle material and normals), the textures and UV sets its
-/// materials sample, and the environment's sampling tables. Build once,
-/// then call [`Reference::estimate`] as often as needed.
+/// A scene prepared for reference estimates: its surfaces as rays meet them
+/// (`trace::Surfaces`, with every texture and vertex colour kept), what its
+/// materials do with light, and the environment's sampling tables. Build
+/// once, then call [`Reference::estimate`] as often as needed.
 pub struct Reference {
-    bvh: Bvh,
+    surfaces: Surfaces,
+    /// Per material of the surfaces' table.
     materials: Vec<SurfaceMaterial>,
-    /// The decoded images the materials sample, shared with the scene.
-    images: Vec<Arc<LinearImage>>,
-    /// UV sets of the triangles whose material is textured or whose
-    /// primitive has vertex colours (`Triangle::texcoords`).
-    texcoords: Vec<TriangleTexcoords>,
-    /// COLOR_0 (RGB clamped to [0, 1], white where absent) at the same
-    /// triangles' corners, same index.
-    colors: Vec<[DVec3; 3]>,
     env: Option<EnvSampler>,
     /// The emissive triangles, sampled at every vertex.
     emitters: Emitters,
     /// The scene's punctual lights, sampled at every vertex.
     lights: Vec<PunctualLight>,
-    /// Largest absolute vertex coordinate, metres (1 for an empty scene).
-    scale: f64,
     /// Lift of secondary ray origins along the front normal, metres.
     surface_offset: f64,
     samples: u32,
     max_bounces: u32,
     seed: u64,
-}
-
-/// The triangles of `scene` in f64 with their front-side data, skipping
-/// degenerate or non-finite ones; material indices refer to `scene.materials`
-/// with `scene.materials.len()` for glTF's default material.
-fn scene_triangles(scene: &Scene) -> Vec<(usize, usize, Triangle)> {
-    let default_material = scene.materials.len() as u32;
-    let mut out = Vec::with_capacity(scene.triangle_count());
-    for (pi, p) in scene.primitives.iter().enumerate() {
-        let material = p.material.filter(|&m| m < scene.materials.len()).map_or(default_material, |m| m as u32);
-        let normals = p.normals.as_ref().filter(|n| n.len() == p.positions.len());
-        let vec = |v: [f32; 3]| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64);
-        for t in 0..p.triangle_count() {
-            let idx = [0, 1, 2].map(|k| p.indices[3 * t + k] as usize);
-            if idx.iter().any(|&i| i >= p.positions.len()) {
-                continue;
-            }
-            let [a, b, c] = idx.map(|i| vec(p.positions[i]));
-            let (e1, e2) = (b - a, c - a);
-            let cross = e1.cross(e2);
-            let len = cross.length();
-            if !(len > 0.0 && len.is_finite() && a.is_finite()) {
-                continue;
-            }
-            let face = if p.mirrored { -cross / len } else { cross / len };
-            let normals = normals.map(|n| {
-                idx.map(|i| {
-                    let v = vec(n[i]);
-                    if v.is_finite() { v } else { DVec3::ZERO }
-                })
-            });
-            out.push((
-                pi,
-                t,
-                Triangle { v0: a, e1, e2, face, normals, material, primitive: pi as u32, texcoords: NO_TEXCOORDS },
-            ));
-        }
-    }
-    out
-}
-
-/// The scene's decoded, well-formed images that some material samples
-/// (with `cut_outs_only`, only those that cut out a material's holes),
-/// shared with the scene, and for each scene image its index among them (`None`:
-/// sampled as white).
-fn usable_images(scene: &Scene, cut_outs_only: bool) -> (Vec<Arc<LinearImage>>, Vec<Option<usize>>) {
-    let mut sampled = vec![false; scene.images.len()];
-    for m in &scene.materials {
-        let textures = match (cut_outs_only, m.cutoff()) {
-            (false, _) => [&m.base_color_texture, &m.emissive_texture],
-            (true, Some(_)) => [&m.base_color_texture, &None],
-            (true, None) => [&None, &None],
-        };
-        for t in textures.into_iter().flatten() {
-            if let Some(s) = sampled.get_mut(t.image) {
-                *s = true;
-            }
-        }
-    }
-    let mut images = Vec::new();
-    let slots = scene
-        .images
-        .iter()
-        .zip(sampled)
-        .map(|(image, sampled)| {
-            let image = image.as_ref().filter(|i| sampled && texture::is_usable(i))?;
-            images.push(Arc::clone(image));
-            Some(images.len() - 1)
-        })
-        .collect();
-    (images, slots)
 }
 
 impl Reference {
@@ -399,68 +275,25 @@ impl Reference {
     /// # Panics
     /// If the environment's texel count is not width × height.
     pub fn new(scene: &Scene, environment: Option<&EnvironmentMap>, options: &ReferenceOptions) -> Reference {
-        Reference::build(scene, environment, options, false)
-    }
-
-    /// The scene's surfaces for shadow rays alone (`blocked`,
-    /// `first_surface`): of its images only those that cut out are kept,
-    /// so its estimates are not the scene's (textures read as white).
-    pub(crate) fn for_shadow_rays(scene: &Scene) -> Reference {
-        Reference::build(scene, None, &ReferenceOptions::default(), true)
-    }
-
-    fn build(
-        scene: &Scene,
-        environment: Option<&EnvironmentMap>,
-        options: &ReferenceOptions,
-        cut_outs_only: bool,
-    ) -> Reference {
-        let (images, image_slots) = usable_images(scene, cut_outs_only);
+        let surfaces = Surfaces::build(scene, Textures::All);
         let default_material = crate::scene::Material::default();
         let materials: Vec<SurfaceMaterial> = scene
             .materials
             .iter()
             .chain(std::iter::once(&default_material))
-            .map(|m| SurfaceMaterial::new(m, &image_slots))
+            .map(|m| SurfaceMaterial::new(m, &surfaces.image_slots))
             .collect();
-        let mut texcoords = Vec::new();
-        let mut colors = Vec::new();
-        let triangles: Vec<Triangle> = scene_triangles(scene)
-            .into_iter()
-            .map(|(pi, t, mut tri)| {
-                let primitive = &scene.primitives[pi];
-                // Shadow rays read only the cut-outs' textures, never the colours.
-                let coloured = primitive.colors.is_some() && !cut_outs_only;
-                if materials[tri.material as usize].is_textured() || coloured {
-                    tri.texcoords = texcoords.len() as u32;
-                    texcoords.push(triangle_texcoords(primitive, t));
-                    colors.push(triangle_colors(primitive, t));
-                }
-                tri
-            })
-            .collect();
-        let scale = triangles
-            .iter()
-            .flat_map(|t| [t.v0, t.v0 + t.e1, t.v0 + t.e2])
-            .map(|v| v.abs().max_element())
-            .fold(0.0f64, f64::max);
-        let scale = if scale > 0.0 && scale.is_finite() { scale } else { 1.0 };
         let env = environment
             .filter(|m| m.width > 0 && m.height > 0)
             .map(|m| EnvSampler::new(m, options.env_rotation_degrees as f64, options.env_intensity as f64));
-        let bvh = Bvh::new(triangles);
-        let emitters = Emitters::new(&bvh.triangles, |t| clamp_emission(materials[t.material as usize].emission));
+        let emitters = Emitters::new(surfaces.triangles(), |t| clamp_emission(materials[t.material as usize].emission));
         Reference {
-            bvh,
             emitters,
             materials,
-            images,
-            texcoords,
-            colors,
             env,
             lights: scene.lights.clone(),
-            scale,
-            surface_offset: 1e-9 * scale,
+            surface_offset: 1e-9 * surfaces.scale,
+            surfaces,
             samples: options.samples.max(1),
             max_bounces: options.max_bounces,
             seed: options.seed,
@@ -469,56 +302,30 @@ impl Reference {
 
     /// Number of triangles traced against (degenerate ones are left out).
     pub fn triangle_count(&self) -> usize {
-        self.bvh.triangles.len()
+        self.surfaces.triangles().len()
     }
 
     /// The largest absolute vertex coordinate (metres) that ray offsets are
     /// relative to.
     pub fn scale(&self) -> f64 {
-        self.scale
+        self.surfaces.scale
     }
 
     /// The albedo and emission of `tri` at barycentrics (u, v).
     fn surface_at(&self, tri: &Triangle, u: f64, v: f64) -> SurfaceSample {
         let m = &self.materials[tri.material as usize];
-        let Some(&[ca, cb, cc]) = self.colors.get(tri.texcoords as usize) else {
+        let Some(&[ca, cb, cc]) = self.surfaces.corner_colors(tri) else {
             return SurfaceSample { albedo: clamp_albedo(m.base_color), emission: clamp_emission(m.emission) };
         };
-        let uv = self.texcoords_at(tri, u, v);
-        let rgb = |t: &Option<Texture>| t.as_ref().map_or(DVec3::ONE, |t| t.sample(&self.images, uv).truncate());
+        let uv = self.surfaces.texcoords_at(tri, u, v);
+        let images = &self.surfaces.images;
+        let rgb = |t: &Option<Texture>| t.as_ref().map_or(DVec3::ONE, |t| t.sample(images, uv).truncate());
         // glTF: base colour = factor · texture · COLOR_0.
         let tint = ca * (1.0 - u - v) + cb * u + cc * v;
         SurfaceSample {
             albedo: clamp_albedo(m.base_color * rgb(&m.base_texture) * tint),
             emission: clamp_emission(m.emission * rgb(&m.emissive_texture)),
         }
-    }
-
-    /// Whether `tri` is cut out at barycentrics (u, v): its material has a
-    /// cut-off (`Material::cutoff`) and base colour alpha × the base texture's alpha falls
-    /// below the cut-off (the bake's casters' test, so NaN alpha is solid).
-    fn is_cut_out(&self, tri: &Triangle, u: f64, v: f64) -> bool {
-        let m = &self.materials[tri.material as usize];
-        let Some(cutoff) = m.cutoff else {
-            return false;
-        };
-        let texture_alpha = match &m.base_texture {
-            Some(t) => t.sample(&self.images, self.texcoords_at(tri, u, v)).w,
-            None => 1.0,
-        };
-        m.alpha * texture_alpha < cutoff
-    }
-
-    /// TEXCOORD_0 and TEXCOORD_1 of `tri` at barycentrics (u, v); zero for a
-    /// triangle without stored coordinates.
-    fn texcoords_at(&self, tri: &Triangle, u: f64, v: f64) -> [DVec2; 2] {
-        let Some(sets) = self.texcoords.get(tri.texcoords as usize) else {
-            return [DVec2::ZERO; 2];
-        };
-        sets.map(|[a, b, c]| {
-            let [a, b, c] = [a, b, c].map(|p| DVec2::new(p[0] as f64, p[1] as f64));
-            a * (1.0 - u - v) + b * u + c * v
-        })
     }
 
     /// Estimates L_lm at every point (same order), in parallel over points
@@ -557,7 +364,7 @@ impl Reference {
             .face_normal
             .map(|f| DVec3::from(f.map(|v| v as f64)).normalize_or_zero())
             .filter(|f| f.is_finite() && f.dot(n) > 0.0);
-        let offset = 1e-6 * self.scale.max(p.abs().max_element());
+        let offset = 1e-6 * self.surfaces.scale.max(p.abs().max_element());
         // Lifted off its own plane, so that no ray above it meets it.
         let origin = p + face.unwrap_or(n) * offset;
         let mut rng = Rng::new(&[self.seed, index, chunk]);
@@ -618,63 +425,6 @@ impl Stats {
     }
 }
 
-/// The scene's triangles for visibility tests outside the reference: the
-/// solve's supersample fix-up asks whether a segment along a surface
-/// crosses other geometry, the shooter patches what their origin sees, the
-/// contact fix-up what a ray meets. Built once per bake and shared by the
-/// three, and by the punctual lights' shadow rays. Geometry only for the
-/// three: alpha-MASK cut-outs block like solid surface (unlike in
-/// [`Reference`]), so the fix-up drops a sub-sample behind a hole as it does
-/// behind a wall, which costs only some smoothing. The shadow rays pass the
-/// cut-outs (`with_cut_outs`).
-pub struct Occluders(Reference);
-
-impl Occluders {
-    /// A BVH over every triangle of `scene`, with what its cut-outs need.
-    pub fn new(scene: &Scene) -> Occluders {
-        Occluders(Reference::for_shadow_rays(scene))
-    }
-
-    /// The same surfaces with their cut-outs open, for shadow rays
-    /// (`Reference::blocked`, `Reference::first_surface`).
-    pub(crate) fn with_cut_outs(&self) -> &Reference {
-        &self.0
-    }
-
-    /// Whether some triangle may come within `radius` of `centre` on the
-    /// side `face` points to (`bvh::Bvh::any_near_above`, conservative).
-    pub(crate) fn any_near_above(&self, centre: DVec3, radius: f64, face: DVec3) -> bool {
-        self.0.bvh.any_near_above(centre, radius, face)
-    }
-
-    /// Whether any triangle crosses the segment from `a` to `b` (ends excluded).
-    pub(crate) fn blocks(&self, a: DVec3, b: DVec3) -> bool {
-        self.0.bvh.occluded(a, b - a, 1.0, None, &bvh::every_hit)
-    }
-
-    /// The first triangle the ray `origin + t·direction` (0 < t < `t_max`)
-    /// meets: its distance t, its primitive's index and its face normal.
-    pub(crate) fn first_hit(&self, origin: DVec3, direction: DVec3, t_max: f64) -> Option<(f64, u32, DVec3)> {
-        let hit = self.0.bvh.closest(origin, direction, t_max, None, &bvh::every_hit)?;
-        let triangle = &self.0.bvh.triangles[hit.triangle as usize];
-        Some((hit.t, triangle.primitive, triangle.face))
-    }
-
-    /// The primitive of some triangle on the ray from `origin` towards
-    /// `direction` (any that blocks it, not always the first).
-    pub(crate) fn any_blocker(&self, origin: DVec3, direction: DVec3) -> Option<u32> {
-        let hit = self.0.bvh.any_hit(origin, direction, f64::INFINITY, None, &bvh::every_hit)?;
-        Some(self.0.bvh.triangles[hit.triangle as usize].primitive)
-    }
-
-    /// Whether a triangle that `counts` accepts (given its primitive's index
-    /// and its front normal) crosses the segment from `a` to `b` (ends
-    /// excluded).
-    pub(crate) fn blocks_where(&self, a: DVec3, b: DVec3, counts: impl Fn(u32, DVec3) -> bool) -> bool {
-        self.0.bvh.occluded(a, b - a, 1.0, None, &|t: &Triangle, _, _| counts(t.primitive, t.face))
-    }
-}
-
 /// `count` points spread over the surface of `scene`, area-weighted and
 /// stratified (point k falls in the k-th of `count` equal slices of the total
 /// area, in primitive and triangle order), uniformly within its triangle,
@@ -721,37 +471,6 @@ pub fn surface_points(scene: &Scene, count: usize, seed: u64) -> Vec<SurfacePoin
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn primitive(uv0: Option<Vec<[f32; 2]>>, uv1: Option<Vec<[f32; 2]>>) -> ScenePrimitive {
-        ScenePrimitive {
-            node: 0,
-            instance: None,
-            mesh: 0,
-            primitive: 0,
-            positions: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 1.0]],
-            normals: None,
-            uv0,
-            uv1,
-            colors: None,
-            indices: vec![0, 1, 2, 2, 1, 3],
-            repeats: Vec::new(),
-            mirrored: false,
-            material: None,
-            drawn_material: None,
-        }
-    }
-
-    #[test]
-    fn texcoords_follow_the_source_corners_and_missing_sets_are_zero() {
-        let uv = vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]];
-        let p = primitive(Some(uv.clone()), None);
-        assert_eq!(triangle_texcoords(&p, 1), [[uv[2], uv[1], uv[3]], [[0.0; 2]; 3]]);
-        let p = primitive(None, Some(uv.clone()));
-        assert_eq!(triangle_texcoords(&p, 0), [[[0.0; 2]; 3], [uv[0], uv[1], uv[2]]]);
-        // A set that does not match the positions is left out too.
-        let p = primitive(Some(uv[..3].to_vec()), None);
-        assert_eq!(triangle_texcoords(&p, 0), [[[0.0; 2]; 3]; 2]);
-    }
 
     #[test]
     fn albedo_and_emission_are_clamped_after_the_texture_multiplies() {

@@ -18,8 +18,7 @@ use std::f64::consts::FRAC_1_PI;
 use glam::DVec3;
 
 use super::Reference;
-use super::bvh::{Hit, Triangle};
-use super::sampling::{Rng, cosine_hemisphere};
+use crate::trace::random::{Rng, cosine_hemisphere};
 
 /// Surface interactions after which Russian roulette starts.
 const ROULETTE_AFTER: u32 = 3;
@@ -39,40 +38,6 @@ fn balance(a: f64, b: f64) -> f64 {
 }
 
 impl Reference {
-    /// Whether a hit at barycentrics (u, v) of `tri` is surface, not a hole.
-    fn solid(&self, tri: &Triangle, u: f64, v: f64) -> bool {
-        !self.is_cut_out(tri, u, v)
-    }
-
-    /// The closest surface along the ray (not `skip`), passing through alpha cut-outs.
-    fn closest(&self, origin: DVec3, direction: DVec3, skip: Option<u32>) -> Option<Hit> {
-        self.bvh.closest(origin, direction, f64::INFINITY, skip, &|tri, u, v| self.solid(tri, u, v))
-    }
-
-    /// Whether a surface other than `skip` and its cut-outs blocks the ray.
-    fn occluded(&self, origin: DVec3, direction: DVec3, skip: Option<u32>) -> bool {
-        self.occluded_within(origin, direction, f64::INFINITY, skip)
-    }
-
-    /// Whether a surface other than `skip` and its cut-outs blocks the ray
-    /// closer than `distance`.
-    fn occluded_within(&self, origin: DVec3, direction: DVec3, distance: f64, skip: Option<u32>) -> bool {
-        self.bvh.occluded(origin, direction, distance, skip, &|tri, u, v| self.solid(tri, u, v))
-    }
-
-    /// Whether a surface (not a cut-out) blocks the ray closer than
-    /// `distance`: the bake's punctual pass's shadow rays.
-    pub(crate) fn blocked(&self, origin: DVec3, direction: DVec3, distance: f64) -> bool {
-        self.occluded_within(origin, direction, distance, None)
-    }
-
-    /// The first surface (not a cut-out) along the ray closer than
-    /// `distance`: how far, and its triangle's front normal there.
-    pub(crate) fn first_surface(&self, origin: DVec3, direction: DVec3, distance: f64) -> Option<(f64, DVec3)> {
-        let hit = self.bvh.closest(origin, direction, distance, None, &|tri, u, v| self.solid(tri, u, v))?;
-        Some((hit.t, self.bvh.triangles[hit.triangle as usize].front_normal(hit.u, hit.v)))
-    }
-
     /// The punctual lights' share of L_lm at a vertex: (1/π) Σ E cos θ over
     /// the lights that reach it unblocked, from the front of its plane.
     fn punctual_light(&self, origin: DVec3, normal: DVec3, face: Option<DVec3>, skip: Option<u32>) -> DVec3 {
@@ -82,7 +47,7 @@ impl Reference {
             let cos = incident.direction.dot(normal);
             if cos > 0.0
                 && !behind(face, incident.direction)
-                && !self.occluded_within(origin, incident.direction, incident.distance, skip)
+                && !self.surfaces.occluded_within(origin, incident.direction, incident.distance, skip)
             {
                 sum += incident.irradiance * (cos * FRAC_1_PI);
             }
@@ -112,7 +77,11 @@ impl Reference {
                 let env = env.unwrap();
                 let s = env.sample([rng.next_f64(), rng.next_f64(), rng.next_f64(), rng.next_f64()]);
                 let cos = s.direction.dot(normal);
-                if cos > 0.0 && s.pdf > 0.0 && !behind(face, s.direction) && !self.occluded(origin, s.direction, skip) {
+                if cos > 0.0
+                    && s.pdf > 0.0
+                    && !behind(face, s.direction)
+                    && !self.surfaces.occluded_within(origin, s.direction, f64::INFINITY, skip)
+                {
                     let pdf_cos = cos * FRAC_1_PI;
                     // (cos/π)/pdf × weight
                     let weight = pdf_cos / s.pdf * balance(s.pdf, pdf_cos);
@@ -127,14 +96,14 @@ impl Reference {
             if cos <= 0.0 || behind(face, direction) {
                 break;
             }
-            let Some(hit) = self.closest(origin, direction, skip) else {
+            let Some(hit) = self.surfaces.closest(origin, direction, skip) else {
                 if let Some(env) = env {
                     let weight = if nee { balance(cos * FRAC_1_PI, env.pdf(direction)) } else { 1.0 };
                     result += beta * env.radiance(direction) * weight;
                 }
                 break;
             };
-            let tri = &self.bvh.triangles[hit.triangle as usize];
+            let tri = &self.surfaces.triangles()[hit.triangle as usize];
             let material = &self.materials[tri.material as usize];
             let mut n = tri.front_normal(hit.u, hit.v);
             if direction.dot(n) >= 0.0 {
@@ -147,7 +116,8 @@ impl Reference {
             let surface = self.surface_at(tri, hit.u, hit.v);
             if surface.emission != DVec3::ZERO {
                 let cos_emitter = direction.dot(tri.face).abs();
-                let pdf_light = self.emitters.pdf_solid_angle(&self.bvh.triangles, hit.triangle, hit.t, cos_emitter);
+                let pdf_light =
+                    self.emitters.pdf_solid_angle(self.surfaces.triangles(), hit.triangle, hit.t, cos_emitter);
                 result += beta * surface.emission * balance(cos * FRAC_1_PI, pdf_light);
             }
             if bounce == self.max_bounces {
@@ -186,7 +156,7 @@ impl Reference {
         skip: Option<u32>,
         rng: &mut Rng,
     ) -> DVec3 {
-        let triangles = &self.bvh.triangles;
+        let triangles = self.surfaces.triangles();
         let s = self.emitters.sample([rng.next_f64(), rng.next_f64(), rng.next_f64()]);
         if Some(s.triangle) == skip {
             return DVec3::ZERO;
@@ -201,11 +171,13 @@ impl Reference {
             return DVec3::ZERO;
         }
         let from_behind = direction.dot(tri.front_normal(s.u, s.v)) >= 0.0;
-        if (from_behind && !self.materials[tri.material as usize].double_sided) || !self.solid(tri, s.u, s.v) {
+        if (from_behind && !self.materials[tri.material as usize].double_sided) || !self.surfaces.solid(tri, s.u, s.v) {
             return DVec3::ZERO;
         }
         let emission = self.surface_at(tri, s.u, s.v).emission;
-        if emission == DVec3::ZERO || self.occluded_within(origin, direction, distance * (1.0 - SHADOW_SHORT), skip) {
+        if emission == DVec3::ZERO
+            || self.surfaces.occluded_within(origin, direction, distance * (1.0 - SHADOW_SHORT), skip)
+        {
             return DVec3::ZERO;
         }
         let pdf_light = self.emitters.pdf_solid_angle(triangles, s.triangle, distance, cos_emitter);

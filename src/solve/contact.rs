@@ -37,10 +37,11 @@ use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
 use crate::environment::Light;
-use crate::reference::{Occluders, Rng, basis, cosine_hemisphere};
 use crate::scene::{AlphaMode, Scene};
 use crate::solve::overlaps::SAME_FACING_COS;
 use crate::texelize::{Texel, TexelSet};
+use crate::trace::Surfaces;
+use crate::trace::random::{Rng, basis, cosine_hemisphere};
 
 /// Probe rays per texel, per side of their stratified grid (16 rays).
 const PROBE_SIDE: u32 = 4;
@@ -122,7 +123,7 @@ pub struct Direct<'a> {
 #[allow(clippy::too_many_arguments)]
 pub fn fix(
     scene: &Scene,
-    occluders: &Occluders,
+    occluders: &Surfaces,
     texels: &TexelSet,
     hidden: Option<&[bool]>,
     direct: &Direct,
@@ -241,7 +242,7 @@ struct Probe {
 /// The scene's geometry for rays, and its texels by place.
 struct Tracer<'a> {
     texels: &'a TexelSet,
-    occluders: &'a Occluders,
+    occluders: &'a Surfaces,
     grid: TexelGrid,
     /// Texels hidden under an opaque surface (`overlaps`), when any are.
     hidden: Option<&'a [bool]>,
@@ -255,7 +256,7 @@ struct Tracer<'a> {
 impl<'a> Tracer<'a> {
     fn new(
         scene: &Scene,
-        occluders: &'a Occluders,
+        occluders: &'a Surfaces,
         texels: &'a TexelSet,
         hidden: Option<&'a [bool]>,
         texel_size: f64,

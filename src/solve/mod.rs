@@ -28,9 +28,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::environment::LightSet;
 use crate::gpu::Gpu;
-use crate::reference::Occluders;
 use crate::scene::Scene;
 use crate::texelize::{Texel, TexelSet};
+use crate::trace::Surfaces;
 pub use bounce::{BounceOptions, BounceStats, StopReason, TracePoint};
 pub use contact::ContactStats;
 use overlaps::Overlaps;
@@ -120,7 +120,7 @@ pub fn run(
     let mut skipped = Vec::new();
     // The scene's triangles on the CPU, built when a pass first asks (the
     // supersample fix-up, the shooter patches, the contact fix-up).
-    let occluders = LazyCell::new(|| Occluders::new(scene));
+    let occluders = LazyCell::new(|| Surfaces::new(scene));
     let environment = lights.filter(|l| !l.lights.is_empty());
     match lights {
         Some(lights) if lights.lights.is_empty() => skip(&mut skipped, "direct", "the environment has no energy"),
@@ -208,7 +208,7 @@ struct Lit {
 /// either: their light as L_lm per texel (0 without them).
 fn light_directly(
     inputs: &Inputs,
-    occluders: &LazyCell<Occluders, impl FnOnce() -> Occluders>,
+    occluders: &LazyCell<Surfaces, impl FnOnce() -> Surfaces>,
     environment: Option<&LightSet>,
     punctual: Option<&Punctual>,
     progress: &mut dyn FnMut(u64, u64),
@@ -253,7 +253,7 @@ fn light_directly(
 /// `skipped` (as is emission's, where no surface is emissive).
 fn bounce(
     inputs: &Inputs,
-    occluders: &LazyCell<Occluders, impl FnOnce() -> Occluders>,
+    occluders: &LazyCell<Surfaces, impl FnOnce() -> Surfaces>,
     overlaps: Option<&Overlaps>,
     lit: &mut Lit,
     skipped: &mut Vec<Skipped>,
@@ -323,7 +323,7 @@ pub fn direct_light(
     options: &SolveOptions,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<(direct::Direct, usize)> {
-    let occluders = LazyCell::new(|| Occluders::new(scene));
+    let occluders = LazyCell::new(|| Surfaces::new(scene));
     let inputs = Inputs { gpu, scene, texels, texels_per_unit, options };
     let light = direct_light_with(&inputs, &occluders, Some(lights), None, progress)?;
     Ok((light.environment.expect("the environment's light was gathered"), light.supersampled))
@@ -348,7 +348,7 @@ struct DirectLight {
 /// supersample fix-up plans its sub-samples).
 fn direct_light_with(
     inputs: &Inputs,
-    occluders: &LazyCell<Occluders, impl FnOnce() -> Occluders>,
+    occluders: &LazyCell<Surfaces, impl FnOnce() -> Surfaces>,
     environment: Option<&LightSet>,
     punctual: Option<&Punctual>,
     progress: &mut dyn FnMut(u64, u64),

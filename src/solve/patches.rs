@@ -16,8 +16,8 @@ use bytemuck::{Pod, Zeroable};
 use glam::{DVec3, IVec3, Vec3};
 use rayon::prelude::*;
 
-use crate::reference::Occluders;
 use crate::texelize::TexelSet;
+use crate::trace::Surfaces;
 
 /// A patch as the GPU sees it. Mirrors `struct Patch` in common.wgsl.
 #[repr(C)]
@@ -185,7 +185,7 @@ type Key = (u32, u32, u32, u32, u32, u32);
 /// from anywhere, and they bounce no light.
 #[derive(Clone, Copy)]
 pub struct Sight<'a> {
-    pub occluders: &'a Occluders,
+    pub occluders: &'a Surfaces,
     pub hidden: Option<&'a [bool]>,
 }
 
@@ -231,7 +231,7 @@ fn split_by_sight(texels: &TexelSet, keyed: Vec<(Key, u32)>, texel_size: f32, si
 }
 
 /// The part of each of `members` (`split_by_sight`).
-fn sight_parts(texels: &TexelSet, members: &[u32], texel_size: f32, occluders: &Occluders) -> Vec<u32> {
+fn sight_parts(texels: &TexelSet, members: &[u32], texel_size: f32, occluders: &Surfaces) -> Vec<u32> {
     const UNSET: u32 = u32::MAX;
     let mut parts = vec![UNSET; members.len()];
     if members.is_empty() {

@@ -17,9 +17,9 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::contact::skim_above;
-use crate::reference::{Occluders, Reference};
 use crate::scene::{PunctualLight, Scene};
 use crate::texelize::Texel;
+use crate::trace::Surfaces;
 
 /// Ray origins leave a point this far along its face normal, relative to
 /// the scene's size or the point's distance from the origin, whichever is
@@ -55,15 +55,15 @@ pub struct PunctualStats {
 pub struct Punctual<'a> {
     lights: &'a [PunctualLight],
     /// Only its shadow rays are used: exact, through cut-outs.
-    surfaces: &'a Reference,
+    surfaces: &'a Surfaces,
     stats: std::sync::Mutex<PunctualStats>,
 }
 
 impl<'a> Punctual<'a> {
     /// The pass for `scene`'s lights, its shadow rays through `occluders`.
-    pub fn new(scene: &'a Scene, occluders: &'a Occluders) -> Punctual<'a> {
+    pub fn new(scene: &'a Scene, occluders: &'a Surfaces) -> Punctual<'a> {
         let stats = PunctualStats { lights: scene.lights.len(), ..Default::default() };
-        Punctual { lights: &scene.lights, surfaces: occluders.with_cut_outs(), stats: std::sync::Mutex::new(stats) }
+        Punctual { lights: &scene.lights, surfaces: occluders, stats: std::sync::Mutex::new(stats) }
     }
 
     /// Irradiance E (RGB) at each texel, in order: points on the surface.
@@ -107,7 +107,7 @@ impl<'a> Punctual<'a> {
         let n = t.normal().as_dvec3();
         let face = Vec3::from(t.face_normal).as_dvec3().try_normalize().unwrap_or(n);
         let p = t.position().as_dvec3();
-        let start = p + face * (LIFT * self.surfaces.scale().max(p.abs().max_element()));
+        let start = p + face * (LIFT * self.surfaces.scale.max(p.abs().max_element()));
         let room = match (lift > 0.0).then(|| self.surfaces.first_surface(start, face, lift)) {
             None => 0.0,
             Some(None) => lift,

@@ -22,8 +22,8 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::colour::luminance;
-use crate::reference::Occluders;
 use crate::texelize::{Texel, TexelSet};
+use crate::trace::Surfaces;
 
 /// Sub-sample offsets in texels from the texel's centre: the D3D standard
 /// 8× multisample pattern (in 1/16 texel), one sample per row and column
@@ -55,7 +55,7 @@ pub struct Plan {
 
 /// Flags the texels on a sharp change of `irradiance` and places their
 /// sub-samples. `None` when no texel needs them.
-pub fn plan(occluders: &Occluders, texels: &TexelSet, irradiance: &[[f32; 3]]) -> Option<Plan> {
+pub fn plan(occluders: &Surfaces, texels: &TexelSet, irradiance: &[[f32; 3]]) -> Option<Plan> {
     let atlas = Atlas { texels };
     let flagged = flag(&atlas, irradiance);
     if flagged.is_empty() {
@@ -130,7 +130,7 @@ fn flag(atlas: &Atlas, irradiance: &[[f32; 3]]) -> Vec<usize> {
 
 /// Flagged texel `i`'s sub-samples that its centre reaches along the
 /// surface; none where it is not inside its chart or touches another surface.
-fn sub_samples(occluders: &Occluders, atlas: &Atlas, i: usize) -> Vec<Texel> {
+fn sub_samples(occluders: &Surfaces, atlas: &Atlas, i: usize) -> Vec<Texel> {
     let texels = atlas.texels;
     let t = &texels.texels[i];
     // Inside its chart: all eight neighbours are its surface.

@@ -1,7 +1,7 @@
 //! A bounding volume hierarchy over boxes: a compact binned-SAH tree (Wald,
 //! "On fast Construction of SAH-based Bounding Volume Hierarchies", 2007)
 //! built sequentially, so the tree is the same on every run and thread
-//! count. The CPU tracer walks it with a stack (`reference::bvh`); the GPU
+//! count. The CPU tracer walks it with a stack (`trace::rays`); the GPU
 //! walks its depth-first flattening (`flatten`), stacklessly.
 
 use glam::DVec3;

@@ -23,7 +23,7 @@ const MIRRORED_REPEAT: u32 = 33648;
 
 /// How texel indices outside the image fold back into it.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) enum Wrap {
+pub(crate) enum Wrap {
     Repeat,
     ClampToEdge,
     MirroredRepeat,
@@ -32,7 +32,7 @@ pub(super) enum Wrap {
 impl Wrap {
     /// The mode of a glTF wrap code; unknown codes repeat, as the sampler
     /// the bake uses does (`wrap_coordinate` in common.wgsl leaves them alone).
-    pub(super) fn from_gl(code: u32) -> Wrap {
+    pub(crate) fn from_gl(code: u32) -> Wrap {
         match code {
             CLAMP_TO_EDGE => Wrap::ClampToEdge,
             MIRRORED_REPEAT => Wrap::MirroredRepeat,
@@ -59,11 +59,11 @@ impl Wrap {
     }
 }
 
-/// A material's texture ready to sample: an image of the reference's table,
+/// A material's texture ready to sample: an image of the surfaces' table,
 /// the UV set it reads, its transform and wrap modes.
 #[derive(Clone, Debug)]
-pub(super) struct Texture {
-    /// Index into the reference's images (shared between materials).
+pub(crate) struct Texture {
+    /// Index into the surfaces' images (shared between materials).
     pub image: usize,
     /// TEXCOORD set: 0 or 1 (the bake reads set 1 for any index above 0).
     set: usize,
@@ -73,8 +73,8 @@ pub(super) struct Texture {
 }
 
 impl Texture {
-    /// `texture` reading image `image` of the reference's table.
-    pub(super) fn new(texture: &TextureRef, image: usize) -> Texture {
+    /// `texture` reading image `image` of the surfaces' table.
+    pub(crate) fn new(texture: &TextureRef, image: usize) -> Texture {
         Texture {
             image,
             set: texture.tex_coord.min(1) as usize,
@@ -84,7 +84,7 @@ impl Texture {
     }
 
     /// The linear RGBA at a point whose TEXCOORD_0 and TEXCOORD_1 are `uv`.
-    pub(super) fn sample(&self, images: &[Arc<LinearImage>], uv: [DVec2; 2]) -> DVec4 {
+    pub(crate) fn sample(&self, images: &[Arc<LinearImage>], uv: [DVec2; 2]) -> DVec4 {
         bilinear(&images[self.image], self.coordinates(uv[self.set]), self.wrap)
     }
 
@@ -96,13 +96,13 @@ impl Texture {
 }
 
 /// Whether `image` can be sampled: non-empty, with one pixel per texel.
-pub(super) fn is_usable(image: &LinearImage) -> bool {
+pub(crate) fn is_usable(image: &LinearImage) -> bool {
     image.width > 0 && image.height > 0 && image.pixels.len() == image.width as usize * image.height as usize
 }
 
 /// The bilinear blend of the four texels whose centres surround texture
 /// coordinates `st`, indices folded per axis by `wrap`.
-pub(super) fn bilinear(image: &LinearImage, st: DVec2, wrap: [Wrap; 2]) -> DVec4 {
+pub(crate) fn bilinear(image: &LinearImage, st: DVec2, wrap: [Wrap; 2]) -> DVec4 {
     let (x0, x1, fx) = neighbours(st.x, image.width, wrap[0]);
     let (y0, y1, fy) = neighbours(st.y, image.height, wrap[1]);
     let texel = |x: usize, y: usize| DVec4::from(image.pixels[y * image.width as usize + x].map(f64::from));

@@ -23,12 +23,12 @@ pub(crate) struct Triangle {
     pub face: DVec3,
     /// Per-vertex shading normals when the mesh has them (may be zero vectors).
     pub normals: Option<[DVec3; 3]>,
-    /// Index into the reference's material table.
+    /// Index into the material table of `trace::Surfaces`.
     pub material: u32,
     /// Index into `Scene::primitives`.
     pub primitive: u32,
-    /// Index into the reference's per-triangle texture coordinates and
-    /// vertex colours, or [`NO_TEXCOORDS`] where the material samples no
+    /// Index into the per-triangle UV sets and vertex colours of
+    /// `trace::Surfaces`, or [`NO_TEXCOORDS`] where the material samples no
     /// texture and the primitive has no COLOR_0.
     pub texcoords: u32,
 }
@@ -390,7 +390,7 @@ impl Bvh {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::reference::sampling::Rng;
+    use crate::trace::random::Rng;
 
     fn random_triangles(n: usize, rng: &mut Rng) -> Vec<Triangle> {
         (0..n)
