@@ -114,25 +114,26 @@ pub struct Direct<'a> {
     pub total: &'a [[f32; 3]],
 }
 
+/// What the contact fix-up traces against: the scene, its surfaces for
+/// rays, its texels, and which texels lie hidden under an opaque surface
+/// (no light; what rays meeting their place take: `Tracer::texel_at`).
+pub struct Geometry<'a> {
+    pub scene: &'a Scene,
+    pub surfaces: &'a Surfaces,
+    pub texels: &'a TexelSet,
+    pub hidden: Option<&'a [bool]>,
+    /// The world width of a lightmap texel.
+    pub texel_size: f64,
+}
+
 /// Replaces the light of texels in contact with another surface by light
-/// traced along rays (module docs). `hidden` marks texels under an opaque
-/// surface (no light; what rays meeting their place take: `Tracer::texel_at`).
-/// `direct` is each texel's direct light, `lightmap` the solution so far
-/// (direct and bounced), updated in place. `cell` is the world width of a shooter
-/// patch's cell, `texel_size` that of a lightmap texel.
-#[allow(clippy::too_many_arguments)]
-pub fn fix(
-    scene: &Scene,
-    occluders: &Surfaces,
-    texels: &TexelSet,
-    hidden: Option<&[bool]>,
-    direct: &Direct,
-    lightmap: &mut [[f32; 3]],
-    cell: f64,
-    texel_size: f64,
-) -> ContactStats {
+/// traced along rays (module docs). `direct` is each texel's direct light,
+/// `lightmap` the solution so far (direct and bounced), updated in place.
+/// `cell` is the world width of a shooter patch's cell.
+pub fn fix(geometry: &Geometry, direct: &Direct, lightmap: &mut [[f32; 3]], cell: f64) -> ContactStats {
     let start = std::time::Instant::now();
-    let tracer = Tracer::new(scene, occluders, texels, hidden, texel_size);
+    let tracer = Tracer::new(geometry);
+    let texels = geometry.texels;
     let reach = REACH_CELLS * cell;
     // Hidden texels keep no light (a slab's shadow on the ground under it
     // would take its underside's).
@@ -143,7 +144,7 @@ pub fn fix(
     let contacts: Vec<(usize, Probe)> = probes.into_iter().enumerate().filter_map(|(i, p)| p.map(|p| (i, p))).collect();
     // Each texel's direct light (traced, or the direct pass's) and what its
     // gather rays meet; none where a ray met a surface light passes.
-    let direct_reach = DIRECT_REACH_TEXELS * texel_size;
+    let direct_reach = DIRECT_REACH_TEXELS * geometry.texel_size;
     let side = gather_side(contacts.len());
     let contacts: Vec<Contact> = contacts
         .par_iter()
@@ -254,13 +255,8 @@ struct Tracer<'a> {
 }
 
 impl<'a> Tracer<'a> {
-    fn new(
-        scene: &Scene,
-        occluders: &'a Surfaces,
-        texels: &'a TexelSet,
-        hidden: Option<&'a [bool]>,
-        texel_size: f64,
-    ) -> Tracer<'a> {
+    fn new(g: &Geometry<'a>) -> Tracer<'a> {
+        let Geometry { scene, surfaces: occluders, texels, hidden, texel_size } = *g;
         Tracer {
             texels,
             occluders,

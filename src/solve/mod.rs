@@ -158,7 +158,8 @@ pub fn run(
             total: direct,
         };
         let lightmap = &mut lit.lightmap;
-        let stats = contact::fix(scene, &occluders, texels, hidden, &direct, lightmap, cell, texel_size as f64);
+        let geometry = contact::Geometry { scene, surfaces: &occluders, texels, hidden, texel_size: texel_size as f64 };
+        let stats = contact::fix(&geometry, &direct, lightmap, cell);
         if stats.gathered > 0
             && let Some(bounce) = bounce_stats.as_mut()
         {

@@ -85,6 +85,18 @@ pub(crate) struct Bvh {
     nodes: Vec<Node>,
 }
 
+/// One cast as `Bvh::traverse_from` passes it down: the ray (with its
+/// inverse direction), the triangle it leaves, which hits count and whether
+/// any hit will do.
+struct Cast<'a, F> {
+    origin: DVec3,
+    direction: DVec3,
+    inv: DVec3,
+    skip: Option<u32>,
+    any: bool,
+    solid: &'a F,
+}
+
 /// Relative tolerance on barycentrics: edges overlap by this fraction.
 const BARY_EPS: f64 = 1e-10;
 /// Rays closer to parallel with a triangle than this cosine miss it.
@@ -251,7 +263,8 @@ impl Bvh {
                         } else {
                             // Deeper than any SAH tree over 2^32 triangles gets;
                             // kept correct anyway by visiting `far` first now.
-                            if let Some(h) = self.traverse_from(far, origin, direction, inv, t_max, skip, any, solid) {
+                            let cast = Cast { origin, direction, inv, skip, any, solid };
+                            if let Some(h) = self.traverse_from(far, &cast, t_max) {
                                 t_max = h.t;
                                 best = Some(h);
                                 if any {
@@ -346,18 +359,8 @@ impl Bvh {
     }
 
     /// Recursive fallback for subtrees past the explicit stack's depth.
-    #[allow(clippy::too_many_arguments)]
-    fn traverse_from(
-        &self,
-        node: u32,
-        origin: DVec3,
-        direction: DVec3,
-        inv: DVec3,
-        t_max: f64,
-        skip: Option<u32>,
-        any: bool,
-        solid: &impl Fn(&Triangle, f64, f64) -> bool,
-    ) -> Option<Hit> {
+    fn traverse_from<F: Fn(&Triangle, f64, f64) -> bool>(&self, node: u32, cast: &Cast<F>, t_max: f64) -> Option<Hit> {
+        let Cast { origin, direction, inv, skip, any, solid } = *cast;
         let n = &self.nodes[node as usize];
         Self::box_entry(n, origin, inv, t_max)?;
         let mut t_max = t_max;
@@ -375,7 +378,7 @@ impl Bvh {
             return best;
         }
         for child in [n.start, n.start + 1] {
-            if let Some(h) = self.traverse_from(child, origin, direction, inv, t_max, skip, any, solid) {
+            if let Some(h) = self.traverse_from(child, cast, t_max) {
                 t_max = h.t;
                 best = Some(h);
                 if any {
