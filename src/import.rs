@@ -51,6 +51,7 @@ pub fn load_with(path: &Path, options: &ImportOptions) -> Result<Scene> {
 }
 
 /// Builds a `Scene` from an already loaded asset, with the default budget.
+#[cfg(feature = "internals")]
 pub fn from_asset(source: SourceAsset) -> Result<Scene> {
     from_asset_with(source, &ImportOptions::default())
 }

@@ -10,31 +10,61 @@
 
 #![warn(clippy::too_many_lines)]
 
-pub mod asset;
+// The front door: what a program embeding bake uses. `run` bakes what a
+// `Config` names into files (the CLI's whole job); `bake_scene` bakes a
+// loaded `Scene` in memory; `check` reads and checks a report.
 pub mod check;
 pub mod cli;
-pub mod colour;
 pub mod config;
-pub mod environment;
-pub mod export;
-pub mod files;
-pub mod fixtures;
-pub mod gpu;
-pub mod import;
-pub mod limits;
-pub mod memory;
-pub mod output;
-pub mod plot;
-pub mod probes;
 pub mod progress;
-pub mod reference;
-pub mod repeats;
 pub mod report;
-pub mod scene;
-pub mod solve;
-pub mod texelize;
-pub mod trace;
-pub mod unwrap;
+
+pub use environment::LightSet;
+pub use gpu::Gpu;
+pub use import::load as load_scene;
+pub use output::remove_staging_on_signals;
+pub use probes::Probes;
+pub use scene::Scene;
+pub use solve::{Solution, StopReason};
+pub use texelize::{Texel, TexelSet};
+pub use unwrap::Atlas;
+
+/// Modules public only with the `internals` feature (the crate's own tests,
+/// benches and examples), crate-private otherwise.
+macro_rules! internal_modules {
+    ($($name:ident),* $(,)?) => {$(
+        #[cfg(feature = "internals")]
+        pub mod $name;
+        #[cfg(not(feature = "internals"))]
+        mod $name;
+    )*};
+}
+
+/// Procedural test scenes, for the crate's own tests, benches and examples.
+#[cfg(feature = "internals")]
+pub mod fixtures;
+
+internal_modules!(
+    asset,
+    colour,
+    environment,
+    export,
+    files,
+    gpu,
+    import,
+    limits,
+    memory,
+    output,
+    plot,
+    probes,
+    reference,
+    repeats,
+    scene,
+    solve,
+    texelize,
+    trace,
+    unwrap,
+);
 
 use std::path::Path;
 use std::time::Instant;
@@ -42,15 +72,10 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 
 use config::{BakeOptions, Config, EnvironmentOptions};
-use environment::{EnvironmentMap, LightSet};
-use gpu::Gpu;
+use environment::EnvironmentMap;
 use memory::MemoryProbe;
 use progress::Progress;
 use report::{AtlasReport, EnvironmentReport, InputFile, OptionsReport, Report, SceneReport, StageTime, TexelReport};
-use scene::Scene;
-use solve::Solution;
-use texelize::TexelSet;
-use unwrap::Atlas;
 
 /// A scene baked in memory.
 pub struct Baked {

@@ -7,9 +7,9 @@ use std::process::ExitCode;
 
 use clap::Parser;
 
+use bake::Gpu;
 use bake::check::EXIT_ERROR;
 use bake::cli::{Args, CheckArgs, Command};
-use bake::gpu::Gpu;
 use bake::progress::{LogMode, Reporter, printable};
 
 fn main() -> ExitCode {
@@ -18,7 +18,7 @@ fn main() -> ExitCode {
         Ok(args) => args,
         Err(error) => return usage_error(error),
     };
-    bake::output::remove_staging_on_signals();
+    bake::remove_staging_on_signals();
     let json_errors = args.log_format == bake::cli::LogFormat::Json && !args.quiet;
     let result = match args.command.take() {
         Some(Command::Check(check)) => run_check(&check),

@@ -35,6 +35,7 @@
 
 mod lights;
 mod load;
+#[cfg(feature = "internals")]
 mod write;
 
 use std::f64::consts::PI;
@@ -45,6 +46,7 @@ use serde::{Deserialize, Serialize};
 
 pub use load::EnvLoadError;
 pub(crate) use load::check_exr_size;
+#[cfg(feature = "internals")]
 pub use write::{ExrPrecision, write_exr, write_hdr};
 
 /// Linear, scene-referred radiance in an equirectangular layout, row 0 at the zenith (+Y).
@@ -233,6 +235,7 @@ pub struct LightSet {
 /// The environment rotation as a matrix: `d_world = rotation_matrix(deg) · d_map`
 /// (right-handed rotation about +Y; see the module documentation). To look up the map for a
 /// world direction, use the transpose.
+#[cfg(any(test, feature = "internals"))]
 pub fn rotation_matrix(rotation_deg: f32) -> glam::Mat3 {
     glam::Mat3::from_rotation_y((rotation_deg as f64).to_radians() as f32)
 }

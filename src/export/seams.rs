@@ -194,6 +194,7 @@ fn error(image: &Image, rows: &[Row]) -> SeamError {
 }
 
 /// The seam error of `image` along `seams` (see [`StitchStats`]).
+#[cfg(feature = "internals")]
 pub fn seam_error(image: &Image, seams: &[SeamEdge]) -> SeamError {
     error(image, &rows(image, seams))
 }

@@ -51,8 +51,6 @@ pub struct Materials {
     pub buffer: wgpu::Buffer,
     pub textures: wgpu::TextureView,
     pub sampler: wgpu::Sampler,
-    /// Side of every array layer.
-    pub texture_size: u32,
 }
 
 impl Materials {
@@ -97,7 +95,7 @@ impl Materials {
             mipmap_filter: wgpu::MipmapFilterMode::Linear,
             ..Default::default()
         });
-        Materials { records, buffer, textures, sampler, texture_size: size }
+        Materials { records, buffer, textures, sampler }
     }
 }
 

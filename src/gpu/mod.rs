@@ -10,7 +10,7 @@ pub(crate) mod mirror;
 mod readback;
 mod shaders;
 
-pub use materials::{GpuMaterial, Materials, NO_TEXTURE};
+pub use materials::Materials;
 pub use readback::{read_buffer, read_elements};
 pub use shaders::Shader;
 
@@ -490,11 +490,6 @@ pub fn texture_array_entry(binding: u32, stages: wgpu::ShaderStages) -> wgpu::Bi
 /// A bind-group-layout entry for a depth texture read with `textureLoad`.
 pub fn depth_texture_entry(binding: u32, stages: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
     texture_2d_entry(binding, stages, wgpu::TextureSampleType::Depth)
-}
-
-/// As `depth_texture_entry`, for an array of depth layers.
-pub fn depth_array_texture_entry(binding: u32, stages: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
-    texture_entry(binding, stages, wgpu::TextureSampleType::Depth, wgpu::TextureViewDimension::D2Array)
 }
 
 /// A bind-group-layout entry for a 2-D texture read with `textureLoad`.

@@ -115,10 +115,12 @@ use crate::environment::EnvironmentMap;
 use crate::scene::{PunctualLight, Scene};
 use crate::trace::random::Rng;
 use crate::trace::rays::Triangle;
-use crate::trace::surfaces::{Surfaces, Textures, scene_triangles, texture};
+use crate::trace::surfaces::{Surfaces, Textures, texture};
 use crate::trace::texture::Texture;
 use emitters::Emitters;
-pub use probes::{Probes, ReferenceCheck, reference_probes, reference_probes_within};
+pub use probes::{Probes, ReferenceCheck, reference_probes};
+#[cfg(feature = "internals")]
+pub use probes::reference_probes_within;
 use sampling::EnvSampler;
 
 /// Samples per independent random stream (see the module's "Determinism").
@@ -184,6 +186,7 @@ pub struct Estimate {
 }
 
 /// A point on a scene's surface chosen by [`surface_points`].
+#[cfg(feature = "internals")]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SurfacePoint {
     /// Index into `Scene::primitives`.
@@ -301,12 +304,14 @@ impl Reference {
     }
 
     /// Number of triangles traced against (degenerate ones are left out).
+    #[cfg(feature = "internals")]
     pub fn triangle_count(&self) -> usize {
         self.surfaces.triangles().len()
     }
 
     /// The largest absolute vertex coordinate (metres) that ray offsets are
     /// relative to.
+    #[cfg(feature = "internals")]
     pub fn scale(&self) -> f64 {
         self.surfaces.scale
     }
@@ -431,8 +436,9 @@ impl Stats {
 /// each with its front-side normal per the module's convention.
 /// Deterministic for a `seed`. Degenerate triangles get no points; a scene
 /// without area gives none.
+#[cfg(feature = "internals")]
 pub fn surface_points(scene: &Scene, count: usize, seed: u64) -> Vec<SurfacePoint> {
-    let triangles = scene_triangles(scene);
+    let triangles = crate::trace::surfaces::scene_triangles(scene);
     let mut cumulative = Vec::with_capacity(triangles.len() + 1);
     let mut total = 0.0f64;
     cumulative.push(0.0);

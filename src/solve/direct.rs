@@ -20,7 +20,6 @@ use anyhow::{Result, bail};
 use bytemuck::{Pod, Zeroable};
 use serde::{Deserialize, Serialize};
 
-use super::SolveOptions;
 use super::occluders::OccluderPass;
 use crate::colour::luminance;
 use crate::environment::{Light, LightSet};
@@ -347,12 +346,13 @@ fn power_per_ray(lights: &LightSet) -> f32 {
 }
 
 /// Gathers the environment's light at every texel (no sub-samples).
+#[cfg(feature = "internals")]
 pub fn run(
     gpu: &Gpu,
     scene: &Scene,
     texels: &TexelSet,
     lights: &LightSet,
-    options: &SolveOptions,
+    options: &super::SolveOptions,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Direct> {
     let gathered = DirectPass::new(gpu, scene)?.gather(&texels.texels, lights, options.batch_size, progress)?;

@@ -315,6 +315,7 @@ fn trace_after_contact(
 
 /// The direct pass with the supersample fix-up when it is asked for, and how
 /// many texels it supersampled.
+#[cfg(feature = "internals")]
 pub fn direct_light(
     gpu: &Gpu,
     scene: &Scene,

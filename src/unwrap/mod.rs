@@ -29,8 +29,8 @@ mod uvunwrap;
 mod xatlas;
 pub mod xatlas_ffi;
 
-pub use check::{Quality, inspect};
-pub use existing::{ExistingUvError, from_existing};
+pub use check::inspect;
+pub use existing::from_existing;
 
 use std::fmt;
 use std::str::FromStr;
@@ -47,6 +47,7 @@ pub struct MeshInput<'a> {
 
 impl<'a> MeshInput<'a> {
     /// A mesh from world-space positions (metres) and a triangle list.
+    #[cfg(feature = "internals")]
     pub fn new(positions: &'a [[f32; 3]], indices: &'a [u32]) -> Self {
         MeshInput { positions, indices }
     }

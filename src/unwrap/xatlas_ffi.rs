@@ -85,8 +85,6 @@ pub const INDEX_FORMAT_UINT32: IndexFormat = 1;
 /// `xatlas::AddMeshError::Enum`.
 pub type AddMeshError = u32;
 pub const ADD_MESH_SUCCESS: AddMeshError = 0;
-pub const ADD_MESH_INDEX_OUT_OF_RANGE: AddMeshError = 1;
-pub const ADD_MESH_INVALID_INDEX_COUNT: AddMeshError = 2;
 
 /// `xatlas::ProgressCategory::Enum`.
 pub type ProgressCategory = u32;
@@ -245,17 +243,6 @@ unsafe extern "C" {
     /// `xatlas::PackCharts(Atlas*, PackOptions, ProgressFunc, void*)`.
     #[link_name = "_ZN6xatlas10PackChartsEPNS_5AtlasENS_11PackOptionsEPFvNS_16ProgressCategory4EnumEiPvES5_"]
     pub fn PackCharts(atlas: *mut Atlas, options: PackOptions, progress: ProgressFunc, user: *mut c_void);
-
-    /// `xatlas::Generate(Atlas*, ChartOptions, ParameterizeFunc, PackOptions, ProgressFunc, void*)`.
-    #[link_name = "_ZN6xatlas8GenerateEPNS_5AtlasENS_12ChartOptionsEPFvPKfPfjPKjjbENS_11PackOptionsEPFvNS_16ProgressCategory4EnumEiPvESD_"]
-    pub fn Generate(
-        atlas: *mut Atlas,
-        chart_options: ChartOptions,
-        func: ParameterizeFunc,
-        pack_options: PackOptions,
-        progress: ProgressFunc,
-        user: *mut c_void,
-    );
 
     /// `xatlas::SetPrint(PrintFunc, bool)`: process-global; `None` silences all output
     /// (the default prints warnings with `printf`).

@@ -12,7 +12,7 @@
 //!
 //! An edge is any path, in a `use` or in code, that starts with `crate::`,
 //! `super::` (resolved through the file's place and its inline `mod`s), or,
-//! in lib.rs, with the name of a module it declares. Comments, strings and
+//! in lib.rs, with the name of a top-level module. Comments, strings and
 //! character literals are blanked first; doc links are not dependencies.
 
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
@@ -96,8 +96,8 @@ fn collect_sources(root: &Path, dir: &Path, out: &mut Vec<(String, String)>) {
 
 /// The graph between top-level modules (see the module comment).
 fn graph(files: &[(String, String)]) -> Graph {
-    let root = &files.iter().find(|(path, _)| path == "lib.rs").expect("no lib.rs").1;
-    let modules = declared_modules(&tokens(&blank(root)));
+    assert!(files.iter().any(|(path, _)| path == "lib.rs"), "no lib.rs");
+    let modules = top_level_modules(files);
     let mut graph = Graph::new();
     for (path, text) in files.iter().filter(|(path, _)| path != "main.rs") {
         let place = module_path(path);
@@ -121,15 +121,12 @@ fn module_path(file: &str) -> Vec<String> {
     parts
 }
 
-/// The names of `mod x;` declarations at the top of lib.rs.
-fn declared_modules(tokens: &[(String, usize)]) -> BTreeSet<String> {
-    let mut modules = BTreeSet::new();
-    for window in tokens.windows(3) {
-        if window[0].0 == "mod" && window[2].0 == ";" {
-            modules.insert(window[1].0.clone());
-        }
-    }
-    modules
+/// The top-level modules: every file and folder directly under src/ but
+/// lib.rs and main.rs (lib.rs declares some of them through a macro, so its
+/// `mod` lines are not read).
+fn top_level_modules(files: &[(String, String)]) -> BTreeSet<String> {
+    let name = |path: &str| path.split('/').next().unwrap_or(path).trim_end_matches(".rs").to_string();
+    files.iter().map(|(path, _)| name(path)).filter(|m| m != "lib" && m != "main").collect()
 }
 
 /// (target node, line, path as written) for every cross-module path in one file's tokens.
