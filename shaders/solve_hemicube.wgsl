@@ -9,6 +9,26 @@
 @group(0) @binding(3) var textures: texture_2d_array<f32>;
 @group(0) @binding(4) var texture_sampler: sampler;
 
+// A caster vertex. Mirrors `casters::CasterVertex`.
+struct CasterIn {
+    @location(0) position: vec3f,
+    @location(1) material: u32,
+    @location(2) uv0: vec2f,
+    @location(3) uv1: vec2f,
+    @location(4) sheet: u32,                        // 1 on an open surface (solve::surfaces)
+}
+
+// What a caster's fragment needs to test its material's alpha cut-out.
+struct CasterOut {
+    @builtin(position) clip: vec4f,
+    @location(0) local: vec3f,                      // position in the shooter's frame (hemicubes)
+    @location(1) @interpolate(flat) material: u32,
+    @location(2) uv0: vec2f,
+    @location(3) uv1: vec2f,
+    @location(4) @interpolate(flat) face: u32,     // hemicube face (hemicubes)
+    @location(5) @interpolate(flat) sheet: u32,    // as CasterIn's (depth maps)
+}
+
 // The instance's shooter and face (`HemicubeFace`), as instance attributes:
 // a CPU driver fetches them once per draw, where reading the shooter from a
 // buffer by instance index cost a load per vertex and lane.

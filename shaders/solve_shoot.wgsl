@@ -96,6 +96,11 @@ const MAX_SCALE: f32 = 4.0;
 // Receivers closer than this many patch radii use the exact polygon form factor.
 const NEAR_FIELD: f32 = 4.0;
 
+// The hemicube's origin: the centroid lifted off the patch's own surface.
+fn hemicube_origin(s: Shooter) -> vec3f {
+    return lifted_origin(s.position, s.normal, s.lift);
+}
+
 // The direction (shooter's frame, not normalized) through the centre of
 // hemicube texel `xy` of `face`, whose viewport is `view`.
 fn hemicube_texel_direction(xy: vec2<i32>, view: vec4f, face: u32) -> vec3f {

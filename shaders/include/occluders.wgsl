@@ -1,3 +1,5 @@
+// The Occluders record and its constants: what can block a point's light. Needs no include.
+
 // What can block a point's light, as the occluder pass sums it up
 // (solve_occluders.wgsl) and the direct pass reads it (solve_direct.wgsl).
 

@@ -1,3 +1,5 @@
+// Ray casts against the scene's hierarchy and triangles (trace::GpuScene). Needs materials.wgsl.
+
 // Ray casts against the scene as src/trace/gpu_scene.rs lays it out: one
 // Rgba32Uint texture of 4-word records (nodes depth-first with escape
 // links, triangles, per-node bounding spheres and convex polygons, cut-out

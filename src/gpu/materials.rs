@@ -17,7 +17,7 @@ const MAX_TEXTURE_SIZE: u32 = 1024;
 /// `GpuTexture::info[0]` of a material without that texture.
 pub const NO_TEXTURE: u32 = u32::MAX;
 
-/// Mirrors `TextureRef` in common.wgsl.
+/// Mirrors `TextureRef` in include/materials.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct GpuTexture {
@@ -34,7 +34,7 @@ impl GpuTexture {
         GpuTexture { row0: [1.0, 0.0, 0.0, 0.0], row1: [0.0, 1.0, 0.0, 0.0], info: [NO_TEXTURE, 0, 10497, 10497] };
 }
 
-/// Mirrors `Material` in common.wgsl.
+/// Mirrors `Material` in include/materials.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct GpuMaterial {
@@ -85,7 +85,7 @@ impl Materials {
             ..Default::default()
         });
         // Clamp and mirror are applied to the coordinates in the shader
-        // (wrap_uv in common.wgsl); the sampler repeats.
+        // (wrap_coordinate in include/materials.wgsl); the sampler repeats.
         let sampler = gpu.device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("material textures"),
             address_mode_u: wgpu::AddressMode::Repeat,
@@ -180,7 +180,7 @@ mod tests {
     use crate::gpu::mirror::assert_mirrors;
 
     #[test]
-    fn the_material_records_mirror_common_wgsl() {
+    fn the_material_records_mirror_materials_wgsl() {
         assert_mirrors!(Shader::TexelizeAttributes, "TextureRef", GpuTexture { row0, row1, info });
         assert_mirrors!(
             Shader::TexelizeAttributes,

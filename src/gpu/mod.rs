@@ -304,7 +304,8 @@ impl Gpu {
         Some(self.memory_peak.swap(now, Ordering::Relaxed))
     }
 
-    /// Builds the named shader (with `common.wgsl` prepended).
+    /// Builds the named shader (with the pieces of `shaders/include/` it
+    /// uses prepended).
     pub fn shader(&self, shader: Shader) -> wgpu::ShaderModule {
         self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some(shader.stem()),

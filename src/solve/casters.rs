@@ -14,7 +14,7 @@ use super::surfaces;
 use crate::gpu::{self, Gpu, Materials};
 use crate::scene::Scene;
 
-/// One caster vertex. Mirrors `CasterIn` in common.wgsl.
+/// One caster vertex. Mirrors `CasterIn` in solve_hemicube.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 struct CasterVertex {

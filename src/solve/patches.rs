@@ -19,7 +19,7 @@ use rayon::prelude::*;
 use crate::texelize::TexelSet;
 use crate::trace::Surfaces;
 
-/// A patch as the GPU sees it. Mirrors `struct Patch` in common.wgsl.
+/// A patch as the GPU sees it. Mirrors `struct Patch` in include/bounce.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct Patch {
@@ -616,7 +616,7 @@ mod tests {
     }
 
     #[test]
-    fn the_patch_mirrors_common_wgsl() {
+    fn the_patch_mirrors_bounce_wgsl() {
         use crate::gpu::{Shader, mirror::assert_mirrors};
         assert_mirrors!(
             Shader::SolveShoot,

@@ -16,7 +16,7 @@ use crate::gpu::Gpu;
 use crate::scene::Scene;
 use crate::unwrap::Atlas;
 
-/// One covered texel. Mirrors `struct Texel` in `shaders/common.wgsl`.
+/// One covered texel. Mirrors `struct Texel` in `shaders/include/texel.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
 pub struct Texel {

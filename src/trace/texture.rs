@@ -31,7 +31,8 @@ pub(crate) enum Wrap {
 
 impl Wrap {
     /// The mode of a glTF wrap code; unknown codes repeat, as the sampler
-    /// the bake uses does (`wrap_coordinate` in common.wgsl leaves them alone).
+    /// the bake uses does (`wrap_coordinate` in include/materials.wgsl
+    /// leaves them alone).
     pub(crate) fn from_gl(code: u32) -> Wrap {
         match code {
             CLAMP_TO_EDGE => Wrap::ClampToEdge,
