@@ -40,20 +40,26 @@
 //! report says how much it was: where the shots' light landed when the pass
 //! converged, by the scene's coverage of each texel when a budget stopped it
 //! (a run stopped early still answers honestly).
+//!
+//! Here: the options and the report's figures, the CPU's sums, and the page
+//! that strings the GPU passes together (`Passes`). Each pass is a file of
+//! its own beside its shader, over the buffers they share (`resources`).
 
 use std::time::Instant;
 
 use anyhow::Result;
-use bytemuck::{Pod, Zeroable};
-use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
-use super::casters::{Casters, Topology};
+use super::hemicube::Hemicube;
 use super::hemicube_cull::HemicubeCull;
+use super::patch_power::PatchPower;
 use super::patches::Patches;
-use super::shooter_cull::{self, ShooterCull};
+use super::resources::{self, BounceParams, Dispatch, Inputs, Resources};
+use super::select::{GpuStats, Select};
+use super::shoot::Shoot;
+use super::shooter_cull::ShooterCull;
 use crate::colour::luminance;
-use crate::gpu::{self, Gpu, Shader, read_buffer};
+use crate::gpu::{self, Gpu, read_buffer};
 use crate::reference::Probes;
 use crate::scene::Scene;
 use crate::texelize::{Texel, TexelSet};
@@ -62,19 +68,6 @@ use crate::texelize::{Texel, TexelSet};
 /// receiver lists the slots it is near as bits of one u32.
 pub const MAX_SHOOTERS: u32 = 32;
 const _: () = assert!(MAX_SHOOTERS <= u32::BITS);
-/// Parts a shooter patch's light is summed by for the near field
-/// (`SUB_CELL_COUNT` in common.wgsl).
-const SUB_CELL_COUNT: usize = 16;
-/// What is kept per sub-cell (power and area, centroid, normal; `SUB_CELL_ROWS`).
-const SUB_CELL_ROWS: usize = 3;
-
-/// Texels one workgroup of the form-factor measure pass sums
-/// (`MEASURE_CHUNK` in solve_shoot.wgsl).
-const MEASURE_CHUNK: u32 = 4096;
-/// Shooter slots one workgroup of the measure pass sums for
-/// (`MEASURE_SLOTS` in solve_shoot.wgsl).
-const MEASURE_SLOTS: u32 = 8;
-
 /// Normalize the form factors only where the scene catches at least this
 /// much of the light it reflects (mean albedo × covered share): below it, a
 /// loss of a few percent per bounce changes the lightmap by well under 1 %
@@ -201,145 +194,6 @@ impl std::fmt::Display for StopReason {
     }
 }
 
-/// Mirrors `BounceParams` in common.wgsl.
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-pub(super) struct BounceParams {
-    texel_count: u32,
-    patch_count: u32,
-    shooter_count: u32,
-    row_stride: u32,
-    face_size: f32,
-    tiles_per_row: u32,
-    far: f32,
-    near: f32,
-    receiver_offset: f32,
-    max_slope: f32,
-    chunk_count: u32,
-    atlas_width: u32,
-    cell: u32,
-    /// A receiver this close to a shooter's plane lies in it, metres: twice
-    /// the rounding `shooter_cull` allows for.
-    in_plane: f32,
-    _pad: u32,
-}
-
-impl BounceParams {
-    /// The same for a dispatch of `row_stride` invocations per row.
-    pub(super) fn with_row_stride(self, row_stride: u32) -> BounceParams {
-        BounceParams { row_stride, ..self }
-    }
-}
-
-/// Mirrors `Shooter` in common.wgsl.
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable, Default)]
-struct Shooter {
-    position: [f32; 3],
-    area: f32,
-    normal: [f32; 3],
-    patch_index: u32,
-    radiance: [f32; 3],
-    radius: f32,
-    rect_centre: [f32; 3],
-    lift: f32,
-    half_u: [f32; 3],
-    rect_area: f32,
-    half_v: [f32; 3],
-    _pad: u32,
-}
-
-/// Mirrors `HemicubeFace` in common.wgsl: one face of a shooter's hemicube,
-/// written on the GPU by the select pass.
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable, Default)]
-struct HemicubeFace {
-    position: [f32; 3],
-    lift: f32,
-    normal: [f32; 3],
-    face: u32,
-}
-
-/// The hemicube pass's instance attributes (`FaceIn` in solve_hemicube.wgsl).
-const FACE_INSTANCES: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayout {
-    array_stride: std::mem::size_of::<HemicubeFace>() as u64,
-    step_mode: wgpu::VertexStepMode::Instance,
-    attributes: &wgpu::vertex_attr_array![5 => Float32x3, 6 => Float32, 7 => Float32x3, 8 => Uint32],
-};
-
-/// Mirrors `BounceStats` in common.wgsl.
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable, Default, Debug)]
-struct GpuStats {
-    unshot: [f32; 4],
-    received: [f32; 4],
-    shot: [f32; 4],
-    shooters: u32,
-    landing: f32,
-    _pad: [u32; 2],
-}
-
-/// Everything the bounce pass binds, created once.
-struct Resources {
-    params: wgpu::Buffer,
-    texels: wgpu::Buffer,
-    /// Per texel: the share of its area that bounces light (`overlaps`).
-    shares: wgpu::Buffer,
-    texel_patch: wgpu::Buffer,
-    patches: wgpu::Buffer,
-    /// Per patch: the covered share of its texels' hemispheres.
-    patch_coverage: wgpu::Buffer,
-    members: wgpu::Buffer,
-    /// Per patch member, in `members`' order: its texel's position and its
-    /// area that bounces (area × share), read in order by the power pass.
-    member_points: wgpu::Buffer,
-    unshot: wgpu::Buffer,
-    lightmap: wgpu::Buffer,
-    patch_power: wgpu::Buffer,
-    patch_origin: wgpu::Buffer,
-    chosen: wgpu::Buffer,
-    shooters: wgpu::Buffer,
-    /// Five faces per shooter slot: the hemicube pass's instances.
-    hemicube_faces: wgpu::Buffer,
-    stats: wgpu::Buffer,
-    /// Per patch: the scale of its form factors, 0 until it first shoots.
-    patch_scale: wgpu::Buffer,
-    /// The batch's shooters' scales by slot (written by `finish`), which the
-    /// gather reads as a uniform buffer.
-    slot_scales: wgpu::Buffer,
-    /// Near- and far-field sums of the measure pass per shooter slot and texel chunk.
-    partials: wgpu::Buffer,
-    /// Receivers in a shooter's near field: a count, then (texel, slots) pairs.
-    near_list: wgpu::Buffer,
-    /// The near-field pass's workgroup counts, written on the GPU from the
-    /// list's length (so no batch waits to read it back).
-    near_args: wgpu::Buffer,
-    /// Each shooter's unshot light and area centroid by sub-cells of its patch.
-    shooter_cells: wgpu::Buffer,
-    depth_view: wgpu::TextureView,
-    casters: Casters,
-}
-
-struct Pipelines {
-    power: (wgpu::ComputePipeline, wgpu::BindGroup),
-    select: (wgpu::ComputePipeline, wgpu::BindGroup),
-    /// The chosen shooters' light by sub-cells; shares the power pass's bind group.
-    shooter_cells: wgpu::ComputePipeline,
-    /// Opaque and alpha-cut-out casters, and their bind group.
-    hemicube: (wgpu::RenderPipeline, wgpu::RenderPipeline, wgpu::BindGroup),
-    /// The form-factor normalization (measure, then finish); they share the
-    /// shots' bind group, and `finish` writes the slots' scales in its own.
-    measure: wgpu::ComputePipeline,
-    finish: (wgpu::ComputePipeline, wgpu::BindGroup),
-    /// The far field of every receiver, then the near field of those `main`
-    /// listed; the far field reads the slots' scales in a bind group of its own.
-    shoot: (wgpu::ComputePipeline, wgpu::BindGroup),
-    slot_scales: wgpu::BindGroup,
-    /// Sizes the near-field pass from the list's length, with its own bind group.
-    near_dispatch: (wgpu::ComputePipeline, wgpu::BindGroup),
-    near_field: wgpu::ComputePipeline,
-}
-
 /// What the bounce pass bounces light between.
 pub struct Surfaces<'a> {
     pub scene: &'a Scene,
@@ -383,7 +237,7 @@ pub fn run(
         }
     };
     let sums = Sums::new(texels, lightmap, coverage);
-    let (params, dispatch) = params(gpu, scene, texels, patches, texels_per_unit, options);
+    let (params, dispatch) = resources::params(gpu, scene, texels, patches, texels_per_unit, options);
     let patch_coverage = patch_coverage(texels, patches, coverage);
     let inputs =
         Inputs { texels: gpu_texels, shares, patches, patch_coverage: &patch_coverage, unshot: &sums.unshot, lightmap };
@@ -392,34 +246,8 @@ pub fn run(
     let passes = Passes::new(gpu, scene, &inputs, params, dispatch, options.face_list_bytes, normalized);
 
     let max_shots = options.max_shots.unwrap_or(64 * patches.patches.len() as u64);
-    let mut tally = Tally { gathered: sums.gathered, ..Tally::default() };
-    let (stopped_by, last) = loop {
-        // Sum and select on the GPU; read back only the totals.
-        let stats = passes.select(gpu)?;
-        let settled = tally.record(gpu, &stats, &sums, &passes.resources, options.probes.as_deref(), start)?;
-        // Converged when the unshot light, each patch's weighted by how much
-        // of its hemisphere the scene covers, is a `tolerance` share of the
-        // light put in, weighted so: a room seen through an opening in a
-        // sunlit scene, where most of the light put in leaves for the sky,
-        // is shot until its own light has settled.
-        if settled <= options.tolerance || stats.shooters == 0 {
-            break (StopReason::Converged, stats);
-        }
-        if tally.shots >= max_shots {
-            break (StopReason::MaxShots, stats);
-        }
-        if options.max_seconds.is_some_and(|max| start.elapsed().as_secs_f64() >= max) {
-            break (StopReason::MaxTime, stats);
-        }
-        passes.shoot(gpu);
-        tally.shots += stats.shooters as u64;
-        tally.shot_total += stats.shot[3] as f64;
-        tally.batches += 1;
-        // Progress in "orders of magnitude converged" towards the tolerance.
-        let goal = (1.0 / options.tolerance.max(1e-12)).ln();
-        let done = ((1.0 / settled.max(1e-300)).ln() / goal * 1000.0).clamp(0.0, 1000.0);
-        progress(done as u64, 1000);
-    };
+    let mut tally = Tally::new(start, sums.gathered);
+    let (stopped_by, last) = shoot_until_done(gpu, &passes, &sums, &mut tally, options, max_shots, progress)?;
 
     let values: Vec<[f32; 4]> = read_buffer(gpu, &passes.resources.lightmap, texels.texels.len())?;
     let remaining: Vec<[f32; 4]> = read_buffer(gpu, &passes.resources.unshot, texels.texels.len())?;
@@ -454,6 +282,46 @@ pub fn run(
         normalized,
         trace: tally.trace,
     })
+}
+
+/// The batch loop: select, record, stop or shoot. Returns why it stopped
+/// and the totals of the last batch selected.
+fn shoot_until_done(
+    gpu: &Gpu,
+    passes: &Passes,
+    sums: &Sums,
+    tally: &mut Tally,
+    options: &BounceOptions,
+    max_shots: u64,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<(StopReason, GpuStats)> {
+    loop {
+        // Sum and select on the GPU; read back only the totals.
+        let stats = passes.select(gpu)?;
+        let settled = tally.record(gpu, &stats, sums, &passes.resources, options.probes.as_deref())?;
+        // Converged when the unshot light, each patch's weighted by how much
+        // of its hemisphere the scene covers, is a `tolerance` share of the
+        // light put in, weighted so: a room seen through an opening in a
+        // sunlit scene, where most of the light put in leaves for the sky,
+        // is shot until its own light has settled.
+        if settled <= options.tolerance || stats.shooters == 0 {
+            return Ok((StopReason::Converged, stats));
+        }
+        if tally.shots >= max_shots {
+            return Ok((StopReason::MaxShots, stats));
+        }
+        if options.max_seconds.is_some_and(|max| tally.start.elapsed().as_secs_f64() >= max) {
+            return Ok((StopReason::MaxTime, stats));
+        }
+        passes.shoot(gpu);
+        tally.shots += stats.shooters as u64;
+        tally.shot_total += stats.shot[3] as f64;
+        tally.batches += 1;
+        // Progress in "orders of magnitude converged" towards the tolerance.
+        let goal = (1.0 / options.tolerance.max(1e-12)).ln();
+        let done = ((1.0 / settled.max(1e-300)).ln() / goal * 1000.0).clamp(0.0, 1000.0);
+        progress(done as u64, 1000);
+    }
 }
 
 /// The pass's sums over the texels, each weighted by its area (its share
@@ -511,8 +379,9 @@ impl Sums {
 }
 
 /// The batch loop's running totals.
-#[derive(Default)]
 struct Tally {
+    /// When the bounce pass started.
+    start: Instant,
     shots: u64,
     batches: u64,
     trace: Vec<TracePoint>,
@@ -528,6 +397,21 @@ struct Tally {
 }
 
 impl Tally {
+    /// Nothing shot yet; `gathered`: Σ L_lm·A of the direct light.
+    fn new(start: Instant, gathered: f64) -> Tally {
+        Tally {
+            start,
+            shots: 0,
+            batches: 0,
+            trace: Vec::new(),
+            shot_total: 0.0,
+            received_total: 0.0,
+            gathered,
+            probe_seconds: 0.0,
+            landing_in: None,
+        }
+    }
+
     /// Adds a batch's totals and its trace point; returns how much of the
     /// light put in is still to settle (coverage-weighted).
     fn record(
@@ -537,7 +421,6 @@ impl Tally {
         sums: &Sums,
         resources: &Resources,
         probes: Option<&Probes>,
-        start: Instant,
     ) -> Result<f64> {
         self.received_total += stats.received[3] as f64;
         self.gathered += stats.received[3] as f64;
@@ -547,7 +430,7 @@ impl Tally {
         let ambient = ambient_term(stats.unshot, closure, sums.mean_albedo, sums.total_area);
         let error_estimate =
             if self.gathered > 0.0 { luminance(ambient) * sums.total_area / self.gathered } else { 0.0 };
-        let seconds = start.elapsed().as_secs_f64() - self.probe_seconds;
+        let seconds = self.start.elapsed().as_secs_f64() - self.probe_seconds;
         let probe_start = Instant::now();
         let reference_error = probe_error(gpu, &resources.lightmap, probes, ambient)?;
         self.probe_seconds += probe_start.elapsed().as_secs_f64();
@@ -557,68 +440,17 @@ impl Tally {
     }
 }
 
-/// How each batch is laid out: shooters, hemicube faces in the depth
-/// atlas, and workgroups over the texels and over the patches.
-#[derive(Clone, Copy)]
-struct Dispatch {
-    shooter_count: u32,
-    face: u32,
-    tiles_per_row: u32,
-    tile_rows: u32,
-    groups: (u32, u32),
-    patch_groups: (u32, u32),
-}
-
-/// The shaders' parameters and the batches' layout.
-fn params(
-    gpu: &Gpu,
-    scene: &Scene,
-    texels: &TexelSet,
-    patches: &Patches,
-    texels_per_unit: f32,
-    options: &BounceOptions,
-) -> (BounceParams, Dispatch) {
-    let radius = scene_radius(scene);
-    let shooter_count = options.shooters_per_batch.clamp(1, MAX_SHOOTERS);
-    let face = options.hemicube_size.clamp(16, 2048);
-    let tiles_per_row = ((gpu.limits.max_texture_dimension_2d / (3 * face)).max(1)).min(shooter_count);
-    let tile_rows = shooter_count.div_ceil(tiles_per_row);
-    let texel_world = 1.0 / texels_per_unit.max(1e-30);
-    let groups = gpu.dispatch_size(texels.texels.len() as u32, 64);
-    let patch_groups = gpu.dispatch_size(patches.patches.len() as u32, 64);
-    let params = BounceParams {
-        texel_count: texels.texels.len() as u32,
-        patch_count: patches.patches.len() as u32,
-        shooter_count,
-        row_stride: groups.0 * 64,
-        face_size: face as f32,
-        tiles_per_row,
-        far: 2.0 * radius,
-        near: (radius * 1e-5).max(texel_world * 1e-3),
-        // Half a lightmap texel: off the surface, well inside any occluder.
-        receiver_offset: 0.5 * texel_world,
-        max_slope: 10.0,
-        chunk_count: (texels.texels.len() as u32).div_ceil(MEASURE_CHUNK).max(1),
-        atlas_width: texels.width,
-        cell: patches.cell,
-        in_plane: shooter_cull::in_plane(&texels.texels),
-        _pad: 0,
-    };
-    (params, Dispatch { shooter_count, face, tiles_per_row, tile_rows, groups, patch_groups })
-}
-
-/// The pass on the GPU: its buffers, pipelines and culls, and the two
-/// submissions of each batch.
+/// The bounce pass on the GPU: the buffers its passes share, and the passes
+/// in the order each batch runs them, in two submissions.
 struct Passes {
     resources: Resources,
-    pipelines: Pipelines,
-    shooter_cull: ShooterCull,
+    power: PatchPower,
+    select: Select,
     /// The casters each hemicube face draws (`None`: every caster).
     cull: Option<HemicubeCull>,
-    params: BounceParams,
-    dispatch: Dispatch,
-    /// Whether each patch's form factors are normalized (`NORMALIZE_FROM`).
-    normalized: bool,
+    hemicube: Hemicube,
+    shooter_cull: ShooterCull,
+    shoot: Shoot,
 }
 
 impl Passes {
@@ -631,81 +463,53 @@ impl Passes {
         face_list_bytes: u64,
         normalized: bool,
     ) -> Passes {
-        let Dispatch { shooter_count, face, tiles_per_row, tile_rows, .. } = dispatch;
-        let resources = resources(gpu, scene, inputs, params, face, tiles_per_row, tile_rows);
-        let (casters, faces) = (&resources.casters, &resources.hemicube_faces);
+        let resources = Resources::new(gpu, inputs, params, dispatch);
+        let hemicube = Hemicube::new(gpu, scene, &resources);
         let shooter_cull = ShooterCull::new(gpu, &inputs.texels.texels, params, &resources.shooters);
-        let cull = HemicubeCull::new(gpu, casters, faces, 5 * shooter_count, params.near, face_list_bytes);
-        if !normalized {
-            // Every patch's scale known (1): the measure and finish passes skip.
-            let ones = vec![1f32; inputs.patches.patches.len().max(1)];
-            gpu.queue.write_buffer(&resources.patch_scale, 0, bytemuck::cast_slice(&ones));
+        let (casters, faces) = (&hemicube.casters, &resources.hemicube_faces);
+        let cull = HemicubeCull::new(gpu, casters, faces, 5 * dispatch.shooter_count, params.near, face_list_bytes);
+        Passes {
+            power: PatchPower::new(gpu, &resources, inputs),
+            select: Select::new(gpu, &resources, inputs),
+            shoot: Shoot::new(gpu, &resources, inputs, &shooter_cull.group_shooters, normalized),
+            cull,
+            hemicube,
+            shooter_cull,
+            resources,
         }
-        let patch_params = params.with_row_stride(dispatch.patch_groups.0 * 64);
-        let patch_params_buffer = gpu.uniform_buffer("solve_patch_power params", &patch_params);
-        let pipelines = Pipelines::new(gpu, &resources, &patch_params_buffer, &shooter_cull.group_shooters);
-        Passes { resources, pipelines, shooter_cull, cull, params, dispatch, normalized }
     }
 
     /// Sums every patch's unshot power, chooses the batch's shooters and
     /// their light by sub-cells, and reads back the totals.
     fn select(&self, gpu: &Gpu) -> Result<GpuStats> {
-        let (pipelines, dispatch) = (&self.pipelines, &self.dispatch);
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&pipelines.power.0);
-            pass.set_bind_group(0, &pipelines.power.1, &[]);
-            pass.dispatch_workgroups(dispatch.patch_groups.0, dispatch.patch_groups.1, 1);
-            pass.set_pipeline(&pipelines.select.0);
-            pass.set_bind_group(0, &pipelines.select.1, &[]);
-            pass.dispatch_workgroups(1, 1, 1);
-            pass.set_pipeline(&pipelines.shooter_cells);
-            pass.set_bind_group(0, &pipelines.power.1, &[]);
-            pass.dispatch_workgroups(dispatch.shooter_count, 1, 1);
+            self.power.record_power(&mut pass);
+            self.select.record(&mut pass);
+            self.power.record_shooter_cells(&mut pass);
         }
         gpu.queue.submit([encoder.finish()]);
-        Ok(read_buffer(gpu, &self.resources.stats, 1)?[0])
+        self.select.stats(gpu)
     }
 
     /// Renders the chosen shooters' hemicubes and gathers their light at
     /// every texel: the far field everywhere, then the near field where
     /// `main` listed it.
     fn shoot(&self, gpu: &Gpu) {
-        let (pipelines, resources) = (&self.pipelines, &self.resources);
-        let Dispatch { shooter_count, face, tiles_per_row, groups, .. } = self.dispatch;
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        encoder.clear_buffer(&resources.near_list, 0, Some(8));
+        self.shoot.clear_near_list(&mut encoder);
         // What each hemicube face of the batch draws (None: every caster).
         if let Some(cull) = &self.cull {
             cull.record(&mut encoder);
         }
-        render_hemicubes(&mut encoder, pipelines, resources, self.cull.as_ref(), shooter_count, face, tiles_per_row);
+        self.hemicube.render(&mut encoder, &self.resources, self.cull.as_ref());
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
             self.shooter_cull.record(&mut pass);
-            pass.set_bind_group(0, &pipelines.shoot.1, &[]);
-            if self.normalized {
-                pass.set_pipeline(&pipelines.measure);
-                pass.dispatch_workgroups(self.params.chunk_count, shooter_count.div_ceil(MEASURE_SLOTS), 1);
-                pass.set_pipeline(&pipelines.finish.0);
-                pass.set_bind_group(1, &pipelines.finish.1, &[]);
-                pass.dispatch_workgroups(shooter_count, 1, 1);
-            }
-            pass.set_pipeline(&pipelines.shoot.0);
-            pass.set_bind_group(1, &pipelines.slot_scales, &[]);
-            pass.dispatch_workgroups(groups.0, groups.1, 1);
-            pass.set_pipeline(&pipelines.near_dispatch.0);
-            pass.set_bind_group(0, &pipelines.near_dispatch.1, &[]);
-            pass.dispatch_workgroups(1, 1, 1);
+            self.shoot.record_far_field(&mut pass);
         }
-        {
-            // The near field only for the receivers listed (a few per shooter).
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_bind_group(0, &pipelines.shoot.1, &[]);
-            pass.set_pipeline(&pipelines.near_field);
-            pass.dispatch_workgroups_indirect(&resources.near_args, 0);
-        }
+        self.shoot.record_near_field(&mut encoder);
         gpu.queue.submit([encoder.finish()]);
     }
 }
@@ -736,21 +540,6 @@ fn ambient_weights(
             None => vec![1.0; texels.texels.len()],
         }
     }
-}
-
-/// The radius of the scene's bounding sphere about the centre of its
-/// bounds, with a margin so that geometry never touches a hemicube's far
-/// plane.
-fn scene_radius(scene: &Scene) -> f32 {
-    let (lo, hi) = scene.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
-    let centre = (lo + hi) * 0.5;
-    let radius = scene
-        .primitives
-        .iter()
-        .flat_map(|p| p.positions.iter())
-        .map(|&p| (Vec3::from(p) - centre).length())
-        .fold(0.0f32, f32::max);
-    (radius * 1.02).max(f32::MIN_POSITIVE * 1e6)
 }
 
 /// The luminance a texel received from other surfaces: its lightmap value
@@ -833,483 +622,4 @@ fn ambient_term(unshot: [f32; 4], closure: f64, albedo: [f64; 3], area: f64) -> 
         let reflect = (albedo[c] * closure).min(0.999);
         unshot[c].max(0.0) as f64 * closure / (area * (1.0 - reflect))
     })
-}
-
-/// What the bounce pass uploads once.
-struct Inputs<'a> {
-    texels: &'a TexelSet,
-    /// Per texel: the share of its area that bounces (`overlaps`).
-    shares: &'a [f32],
-    patches: &'a Patches,
-    /// Per patch: the covered share of its texels' hemispheres.
-    patch_coverage: &'a [f32],
-    unshot: &'a [[f32; 4]],
-    lightmap: &'a [[f32; 3]],
-}
-
-fn resources(
-    gpu: &Gpu,
-    scene: &Scene,
-    inputs: &Inputs,
-    params: BounceParams,
-    face: u32,
-    tiles_per_row: u32,
-    tile_rows: u32,
-) -> Resources {
-    let Inputs { texels, shares, patches, patch_coverage, unshot, lightmap } = *inputs;
-    let none = wgpu::BufferUsages::empty();
-    let depth = gpu.depth_target("solve_hemicube depth", 3 * face * tiles_per_row, face * tile_rows);
-    let lightmap4: Vec<[f32; 4]> = lightmap.iter().map(|l| [l[0], l[1], l[2], 0.0]).collect();
-    Resources {
-        params: gpu.uniform_buffer("solve_shoot params", &params),
-        texels: gpu.storage_buffer("solve_shoot texels", &texels.texels, none),
-        shares: gpu.storage_buffer("solve_shoot shares", shares, none),
-        texel_patch: gpu.storage_buffer("solve_shoot texel patches", &patches.texel_patch, none),
-        patches: gpu.storage_buffer("solve_select patches", &patches.patches, none),
-        patch_coverage: gpu.storage_buffer("solve_select patch coverage", patch_coverage, none),
-        members: gpu.storage_buffer("solve_patch_power members", &patches.members, none),
-        member_points: gpu.storage_buffer("solve_patch_power member points", &member_points(inputs), none),
-        unshot: gpu.storage_buffer("solve_shoot unshot", unshot, wgpu::BufferUsages::COPY_SRC),
-        lightmap: gpu.storage_buffer("solve_shoot lightmap", &lightmap4, wgpu::BufferUsages::COPY_SRC),
-        patch_power: gpu.zeroed_storage_buffer::<[f32; 4]>("solve_patch_power power", patches.patches.len(), none),
-        patch_origin: gpu.zeroed_storage_buffer::<[f32; 4]>("solve_patch_power origins", patches.patches.len(), none),
-        chosen: gpu.zeroed_storage_buffer::<u32>("solve_select chosen", patches.patches.len(), none),
-        shooters: gpu.storage_buffer(
-            "solve_select shooters",
-            &[Shooter::default(); MAX_SHOOTERS as usize],
-            wgpu::BufferUsages::UNIFORM,
-        ),
-        stats: gpu.storage_buffer("solve_select stats", &[GpuStats::default()], wgpu::BufferUsages::COPY_SRC),
-        patch_scale: gpu.zeroed_storage_buffer::<f32>(
-            "solve_shoot patch scales",
-            patches.patches.len(),
-            wgpu::BufferUsages::COPY_DST,
-        ),
-        slot_scales: gpu.storage_buffer(
-            "solve_shoot slot scales",
-            &[1f32; MAX_SHOOTERS as usize],
-            wgpu::BufferUsages::UNIFORM,
-        ),
-        partials: gpu.zeroed_storage_buffer::<f32>(
-            "solve_shoot measured sums",
-            (2 * MAX_SHOOTERS * params.chunk_count) as usize,
-            none,
-        ),
-        // A count (padded to 8 bytes), then at most one entry per texel.
-        near_list: gpu.zeroed_storage_buffer::<[u32; 2]>(
-            "solve_shoot near-field receivers",
-            1 + texels.texels.len().max(1),
-            wgpu::BufferUsages::COPY_DST,
-        ),
-        near_args: gpu.zeroed_storage_buffer::<u32>("solve_shoot near-field dispatch", 3, wgpu::BufferUsages::INDIRECT),
-        shooter_cells: gpu.storage_buffer(
-            "solve_patch_power shooter cells",
-            // Per slot and sub-cell: unshot power and area, the centroid, the normal.
-            &vec![[0f32; 4]; MAX_SHOOTERS as usize * SUB_CELL_ROWS * SUB_CELL_COUNT],
-            wgpu::BufferUsages::UNIFORM,
-        ),
-        hemicube_faces: gpu.zeroed_storage_buffer::<HemicubeFace>(
-            "solve_select hemicube faces",
-            5 * MAX_SHOOTERS as usize,
-            wgpu::BufferUsages::VERTEX,
-        ),
-        depth_view: depth.create_view(&Default::default()),
-        casters: Casters::new(gpu, scene, Topology::Solids),
-    }
-}
-
-impl Pipelines {
-    fn new(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer, group_shooters: &wgpu::Buffer) -> Pipelines {
-        let (power_layout, power_group) = power_bindings(gpu, r, patch_params);
-        let (select_layout, select_group) = select_bindings(gpu, r);
-        let (shoot_layout, shoot_group) = shoot_bindings(gpu, r, group_shooters);
-        let scales = SlotScales::new(gpu, r);
-        let (near_dispatch_layout, near_dispatch_group) = near_dispatch_bindings(gpu, r);
-        Pipelines {
-            power: (gpu.compute_pipeline(Shader::SolvePatchPower, "main", &[&power_layout]), power_group),
-            shooter_cells: gpu.compute_pipeline(Shader::SolvePatchPower, "shooter_cells_of_batch", &[&power_layout]),
-            select: (gpu.compute_pipeline(Shader::SolveSelect, "main", &[&select_layout]), select_group),
-            hemicube: hemicube_pipelines(gpu, r),
-            measure: gpu.compute_pipeline(Shader::SolveShoot, "measure", &[&shoot_layout]),
-            finish: (
-                gpu.compute_pipeline(Shader::SolveShoot, "finish", &[&shoot_layout, &scales.write_layout]),
-                scales.write_group,
-            ),
-            shoot: (
-                gpu.compute_pipeline(Shader::SolveShoot, "main", &[&shoot_layout, &scales.read_layout]),
-                shoot_group,
-            ),
-            slot_scales: scales.read_group,
-            near_field: gpu.compute_pipeline(Shader::SolveShoot, "near_field", &[&shoot_layout]),
-            near_dispatch: (
-                gpu.compute_pipeline(Shader::SolveShoot, "near_dispatch", &[&near_dispatch_layout]),
-                near_dispatch_group,
-            ),
-        }
-    }
-}
-
-fn bind_group_layout(gpu: &Gpu, label: &str, entries: &[wgpu::BindGroupLayoutEntry]) -> wgpu::BindGroupLayout {
-    gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries })
-}
-
-/// `solve_patch_power`'s bindings: each patch's unshot power, and the
-/// chosen shooters' light by sub-cells.
-fn power_bindings(gpu: &Gpu, r: &Resources, patch_params: &wgpu::Buffer) -> (wgpu::BindGroupLayout, wgpu::BindGroup) {
-    let compute = wgpu::ShaderStages::COMPUTE;
-    let layout = bind_group_layout(
-        gpu,
-        "solve_patch_power",
-        &[
-            // 0: BounceParams (patch count, dispatch stride)
-            gpu::uniform_entry(0, compute),
-            // 1: texels (areas), 2: patches, 3: patch members
-            gpu::storage_entry(1, true, compute),
-            gpu::storage_entry(2, true, compute),
-            gpu::storage_entry(3, true, compute),
-            // 4: unshot radiance per texel, 5: per-patch power, 6: per-patch origins (written)
-            gpu::storage_entry(4, true, compute),
-            gpu::storage_entry(5, false, compute),
-            gpu::storage_entry(6, false, compute),
-            // 7: the batch's shooters, 8: their light by sub-cells (written)
-            gpu::uniform_entry(7, compute),
-            gpu::storage_entry(8, false, compute),
-            // 9: each texel's share of the area that bounces
-            gpu::storage_entry(9, true, compute),
-            // 10: each member's position and bouncing area
-            gpu::storage_entry(10, true, compute),
-        ],
-    );
-    let group = gpu::bind_buffers(
-        gpu,
-        "solve_patch_power",
-        &layout,
-        &[
-            patch_params,
-            &r.texels,
-            &r.patches,
-            &r.members,
-            &r.unshot,
-            &r.patch_power,
-            &r.patch_origin,
-            &r.shooters,
-            &r.shooter_cells,
-            &r.shares,
-            &r.member_points,
-        ],
-    );
-    (layout, group)
-}
-
-/// `Resources::member_points`: the patch members' texels' positions and
-/// bouncing areas in the members' order, so that the power pass, run every
-/// batch, reads them in order rather than whole texels by index.
-fn member_points(inputs: &Inputs) -> Vec<[f32; 4]> {
-    let points = inputs.patches.members.iter().map(|&i| {
-        let t = &inputs.texels.texels[i as usize];
-        [t.position[0], t.position[1], t.position[2], t.area * inputs.shares[i as usize]]
-    });
-    points.collect()
-}
-
-/// `solve_select`'s bindings: the batch's shooters, their hemicube faces and
-/// the totals read back.
-fn select_bindings(gpu: &Gpu, r: &Resources) -> (wgpu::BindGroupLayout, wgpu::BindGroup) {
-    let compute = wgpu::ShaderStages::COMPUTE;
-    let layout = bind_group_layout(
-        gpu,
-        "solve_select",
-        &[
-            // 0: BounceParams, 1: patches, 2: per-patch power
-            gpu::uniform_entry(0, compute),
-            gpu::storage_entry(1, true, compute),
-            gpu::storage_entry(2, true, compute),
-            // 3: chosen flags, 4: shooters, 5: totals (all written)
-            gpu::storage_entry(3, false, compute),
-            gpu::storage_entry(4, false, compute),
-            gpu::storage_entry(5, false, compute),
-            // 6: per-patch origins, 7: per-patch coverage
-            gpu::storage_entry(6, true, compute),
-            gpu::storage_entry(7, true, compute),
-            // 8: the shooters' hemicube faces (written)
-            gpu::storage_entry(8, false, compute),
-        ],
-    );
-    let group = gpu::bind_buffers(
-        gpu,
-        "solve_select",
-        &layout,
-        &[
-            &r.params,
-            &r.patches,
-            &r.patch_power,
-            &r.chosen,
-            &r.shooters,
-            &r.stats,
-            &r.patch_origin,
-            &r.patch_coverage,
-            &r.hemicube_faces,
-        ],
-    );
-    (layout, group)
-}
-
-/// `solve_hemicube`'s pipelines for opaque and alpha-cut-out casters, and
-/// their bind group.
-fn hemicube_pipelines(gpu: &Gpu, r: &Resources) -> (wgpu::RenderPipeline, wgpu::RenderPipeline, wgpu::BindGroup) {
-    let vertex = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
-    let [materials_entry, textures_entry, sampler_entry] = Casters::layout_entries(2);
-    let layout = bind_group_layout(
-        gpu,
-        "solve_hemicube",
-        &[
-            // 0: BounceParams (near, far)
-            gpu::uniform_entry(0, vertex),
-            // 2, 3, 4: materials, their textures and sampler (alpha cut-outs)
-            materials_entry,
-            textures_entry,
-            sampler_entry,
-        ],
-    );
-    let [materials_binding, textures_binding, sampler_binding] = r.casters.bind_entries(2);
-    let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("solve_hemicube"),
-        layout: &layout,
-        entries: &[
-            wgpu::BindGroupEntry { binding: 0, resource: r.params.as_entire_binding() },
-            materials_binding,
-            textures_binding,
-            sampler_binding,
-        ],
-    });
-    let module = gpu.shader(Shader::SolveHemicube);
-    let pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some("solve_hemicube"),
-        bind_group_layouts: &[Some(&layout)],
-        immediate_size: 0,
-    });
-    let pipeline =
-        |label, vs, fs| Casters::pipeline(gpu, label, &pipeline_layout, &module, vs, FACE_INSTANCES, Some(fs), &[]);
-    let opaque = pipeline("solve_hemicube", "vs_hemicube", "fs_hemicube");
-    let masked = pipeline("solve_hemicube masked", "vs_hemicube_masked", "fs_hemicube_masked");
-    (opaque, masked, group)
-}
-
-/// `solve_shoot`'s bindings (group 0 of every entry point but
-/// `near_dispatch`): the gather, its normalization and the near field.
-fn shoot_bindings(gpu: &Gpu, r: &Resources, group_shooters: &wgpu::Buffer) -> (wgpu::BindGroupLayout, wgpu::BindGroup) {
-    let compute = wgpu::ShaderStages::COMPUTE;
-    let layout = bind_group_layout(
-        gpu,
-        "solve_shoot",
-        &[
-            // 0: BounceParams, 1: texels, 2: patch of each texel, 3: shooters
-            gpu::uniform_entry(0, compute),
-            gpu::storage_entry(1, true, compute),
-            gpu::storage_entry(2, true, compute),
-            gpu::uniform_entry(3, compute),
-            // 4: lightmap L_lm, 5: unshot ΔL (both accumulated)
-            gpu::storage_entry(4, false, compute),
-            gpu::storage_entry(5, false, compute),
-            // 6: the batch's hemicube depth atlas
-            gpu::depth_texture_entry(6, compute),
-            // 7: per-patch form-factor scales, 8: the measure pass's sums
-            gpu::storage_entry(7, false, compute),
-            gpu::storage_entry(8, false, compute),
-            // 10: receivers in a shooter's near field (listed, then gathered)
-            gpu::storage_entry(10, false, compute),
-            // 11: the shooters' light by sub-cells, 13: each texel's share of the area that bounces
-            gpu::uniform_entry(11, compute),
-            gpu::storage_entry(13, true, compute),
-            // 14: each patch's slot + 1 in the batch, 15: each texel group's slots (solve_shooter_cull)
-            gpu::storage_entry(14, true, compute),
-            gpu::storage_entry(15, true, compute),
-        ],
-    );
-    let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("solve_shoot"),
-        layout: &layout,
-        entries: &[
-            wgpu::BindGroupEntry { binding: 0, resource: r.params.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 1, resource: r.texels.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 2, resource: r.texel_patch.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 3, resource: r.shooters.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 4, resource: r.lightmap.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 5, resource: r.unshot.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 6, resource: wgpu::BindingResource::TextureView(&r.depth_view) },
-            wgpu::BindGroupEntry { binding: 7, resource: r.patch_scale.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 8, resource: r.partials.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 10, resource: r.near_list.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 11, resource: r.shooter_cells.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 13, resource: r.shares.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 14, resource: r.chosen.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 15, resource: group_shooters.as_entire_binding() },
-        ],
-    });
-    (layout, group)
-}
-
-/// The slots' form-factor scales: written by `finish`, read by `main` as a
-/// uniform buffer, so in a group of each one's own.
-struct SlotScales {
-    write_layout: wgpu::BindGroupLayout,
-    write_group: wgpu::BindGroup,
-    read_layout: wgpu::BindGroupLayout,
-    read_group: wgpu::BindGroup,
-}
-
-impl SlotScales {
-    fn new(gpu: &Gpu, r: &Resources) -> SlotScales {
-        let compute = wgpu::ShaderStages::COMPUTE;
-        let write_layout =
-            bind_group_layout(gpu, "solve_shoot slot scales (written)", &[gpu::storage_entry(1, false, compute)]);
-        let read_layout = bind_group_layout(gpu, "solve_shoot slot scales", &[gpu::uniform_entry(0, compute)]);
-        let group = |label, layout, binding| {
-            gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some(label),
-                layout,
-                entries: &[wgpu::BindGroupEntry { binding, resource: r.slot_scales.as_entire_binding() }],
-            })
-        };
-        let write_group = group("solve_shoot slot scales (written)", &write_layout, 1);
-        let read_group = group("solve_shoot slot scales", &read_layout, 0);
-        SlotScales { write_layout, write_group, read_layout, read_group }
-    }
-}
-
-/// `near_dispatch`'s bindings, apart from the shots' group: its output is
-/// the near-field pass's indirect arguments, which no bind group of that
-/// pass may hold.
-fn near_dispatch_bindings(gpu: &Gpu, r: &Resources) -> (wgpu::BindGroupLayout, wgpu::BindGroup) {
-    let compute = wgpu::ShaderStages::COMPUTE;
-    let layout = bind_group_layout(
-        gpu,
-        "solve_shoot near_dispatch",
-        &[
-            // 10: the near-field list (its count), 12: the workgroup counts (written)
-            gpu::storage_entry(10, false, compute),
-            gpu::storage_entry(12, false, compute),
-        ],
-    );
-    let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("solve_shoot near_dispatch"),
-        layout: &layout,
-        entries: &[
-            wgpu::BindGroupEntry { binding: 10, resource: r.near_list.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 12, resource: r.near_args.as_entire_binding() },
-        ],
-    });
-    (layout, group)
-}
-
-/// The five faces of every shooter's hemicube, each into its viewport of
-/// the depth atlas (the same layout `hemicube_viewport` in common.wgsl reads):
-/// the casters `cull` listed for the face, or every caster.
-fn render_hemicubes(
-    encoder: &mut wgpu::CommandEncoder,
-    pipelines: &Pipelines,
-    r: &Resources,
-    cull: Option<&HemicubeCull>,
-    shooters: u32,
-    face: u32,
-    tiles_per_row: u32,
-) {
-    let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-        label: Some("solve_hemicube"),
-        color_attachments: &[],
-        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-            view: &r.depth_view,
-            depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
-            stencil_ops: None,
-        }),
-        timestamp_writes: None,
-        occlusion_query_set: None,
-        multiview_mask: None,
-    });
-    pass.set_bind_group(0, &pipelines.hemicube.2, &[]);
-    r.casters.bind(&mut pass, &r.hemicube_faces);
-    if let Some(cull) = cull {
-        // The faces' lists, in place of the casters' own indices.
-        cull.bind(&mut pass);
-    }
-    let (opaque, masked) = (&pipelines.hemicube.0, &pipelines.hemicube.1);
-    // Binding a pipeline makes a CPU driver derive its state again: the
-    // opaque one is bound once, and again only after a masked draw.
-    pass.set_pipeline(opaque);
-    let face_bytes = std::mem::size_of::<HemicubeFace>() as u64;
-    let s = face as f32;
-    for slot in 0..shooters {
-        let tile = [(slot % tiles_per_row) as f32 * 3.0 * s, (slot / tiles_per_row) as f32 * s];
-        let views = [
-            [tile[0], tile[1], s, s],
-            [tile[0] + s, tile[1], s, 0.5 * s],
-            [tile[0] + s, tile[1] + 0.5 * s, s, 0.5 * s],
-            [tile[0] + 2.0 * s, tile[1], s, 0.5 * s],
-            [tile[0] + 2.0 * s, tile[1] + 0.5 * s, s, 0.5 * s],
-        ];
-        for (f, [x, y, w, h]) in views.into_iter().enumerate() {
-            pass.set_viewport(x, y, w, h, 0.0, 1.0);
-            // The face's attributes as instance 0: an indirect draw's first
-            // instance must be 0 on adapters without INDIRECT_FIRST_INSTANCE.
-            let instance = slot * 5 + f as u32;
-            pass.set_vertex_buffer(1, r.hemicube_faces.slice(instance as u64 * face_bytes..));
-            match cull {
-                Some(cull) => cull.draw(&mut pass, instance),
-                None => r.casters.draw_opaque(&mut pass, 0),
-            }
-            if r.casters.draw_masked(&mut pass, masked, 0) {
-                pass.set_pipeline(opaque);
-            }
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::gpu::Shader;
-    use crate::gpu::mirror::assert_mirrors;
-
-    #[test]
-    fn the_bounce_structs_mirror_common_wgsl() {
-        assert_mirrors!(
-            Shader::SolveShoot,
-            "BounceParams",
-            BounceParams {
-                texel_count,
-                patch_count,
-                shooter_count,
-                row_stride,
-                face_size,
-                tiles_per_row,
-                far,
-                near,
-                receiver_offset,
-                max_slope,
-                chunk_count,
-                atlas_width,
-                cell,
-                in_plane,
-            }
-        );
-        assert_mirrors!(
-            Shader::SolveShoot,
-            "Shooter",
-            Shooter {
-                position,
-                area,
-                normal,
-                patch_index,
-                radiance,
-                radius,
-                rect_centre,
-                lift,
-                half_u,
-                rect_area,
-                half_v
-            }
-        );
-        assert_mirrors!(Shader::SolveHemicube, "HemicubeFace", HemicubeFace { position, lift, normal, face });
-        assert_mirrors!(Shader::SolveSelect, "BounceStats", GpuStats { unshot, received, shot, shooters, landing });
-    }
 }

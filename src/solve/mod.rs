@@ -7,16 +7,27 @@
 //! `punctual` (the scene's own lights, along exact shadow rays), then
 //! `bounce` (progressive refinement of reflected and emitted light between
 //! `patches`).
+//!
+//! Each GPU pass is a file beside its shader (`solve_<pass>.wgsl`), a struct
+//! holding its pipelines and bind groups with a method that records it:
+//! `occluders` and `direct`; the bounce pass's `patch_power`, `select`,
+//! `hemicube_cull`, `hemicube`, `shooter_cull` and `shoot`, over the buffers
+//! they share (`resources`), strung together batch by batch in `bounce`.
 
 pub mod bounce;
 mod casters;
 mod contact;
 pub mod direct;
+mod hemicube;
 mod hemicube_cull;
 mod occluders;
 mod overlaps;
+mod patch_power;
 pub mod patches;
 pub mod punctual;
+mod resources;
+mod select;
+mod shoot;
 mod shooter_cull;
 pub mod supersample;
 mod surfaces;

@@ -7,7 +7,7 @@
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 
-use super::bounce::BounceParams;
+use super::resources::BounceParams;
 use crate::gpu::{self, Gpu, Shader};
 use crate::texelize::Texel;
 

@@ -1,0 +1,232 @@
+//! What the bounce pass's GPU passes share: the shaders' parameters
+//! (`BounceParams`), how each batch is laid out, and the buffers more than
+//! one pass binds. A buffer only one pass binds belongs to that pass.
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+
+use super::bounce::{BounceOptions, MAX_SHOOTERS};
+use super::hemicube::HemicubeFace;
+use super::patches::Patches;
+use super::select::Shooter;
+use super::shoot::MEASURE_CHUNK;
+use super::shooter_cull;
+use crate::gpu::Gpu;
+use crate::scene::Scene;
+use crate::texelize::TexelSet;
+
+/// Parts a shooter patch's light is summed by for the near field
+/// (`SUB_CELL_COUNT` in common.wgsl).
+const SUB_CELL_COUNT: usize = 16;
+/// What is kept per sub-cell (power and area, centroid, normal; `SUB_CELL_ROWS`).
+const SUB_CELL_ROWS: usize = 3;
+
+/// Mirrors `BounceParams` in common.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+pub(super) struct BounceParams {
+    texel_count: u32,
+    patch_count: u32,
+    shooter_count: u32,
+    row_stride: u32,
+    face_size: f32,
+    tiles_per_row: u32,
+    far: f32,
+    pub(super) near: f32,
+    receiver_offset: f32,
+    max_slope: f32,
+    pub(super) chunk_count: u32,
+    atlas_width: u32,
+    cell: u32,
+    /// A receiver this close to a shooter's plane lies in it, metres: twice
+    /// the rounding `shooter_cull` allows for.
+    in_plane: f32,
+    _pad: u32,
+}
+
+impl BounceParams {
+    /// The same for a dispatch of `row_stride` invocations per row.
+    pub(super) fn with_row_stride(self, row_stride: u32) -> BounceParams {
+        BounceParams { row_stride, ..self }
+    }
+}
+
+/// How each batch is laid out: shooters, hemicube faces in the depth
+/// atlas, and workgroups over the texels and over the patches.
+#[derive(Clone, Copy)]
+pub(super) struct Dispatch {
+    pub(super) shooter_count: u32,
+    pub(super) face: u32,
+    pub(super) tiles_per_row: u32,
+    pub(super) tile_rows: u32,
+    pub(super) groups: (u32, u32),
+    pub(super) patch_groups: (u32, u32),
+}
+
+/// The shaders' parameters and the batches' layout.
+pub(super) fn params(
+    gpu: &Gpu,
+    scene: &Scene,
+    texels: &TexelSet,
+    patches: &Patches,
+    texels_per_unit: f32,
+    options: &BounceOptions,
+) -> (BounceParams, Dispatch) {
+    let radius = scene_radius(scene);
+    let shooter_count = options.shooters_per_batch.clamp(1, MAX_SHOOTERS);
+    let face = options.hemicube_size.clamp(16, 2048);
+    let tiles_per_row = ((gpu.limits.max_texture_dimension_2d / (3 * face)).max(1)).min(shooter_count);
+    let tile_rows = shooter_count.div_ceil(tiles_per_row);
+    let texel_world = 1.0 / texels_per_unit.max(1e-30);
+    let groups = gpu.dispatch_size(texels.texels.len() as u32, 64);
+    let patch_groups = gpu.dispatch_size(patches.patches.len() as u32, 64);
+    let params = BounceParams {
+        texel_count: texels.texels.len() as u32,
+        patch_count: patches.patches.len() as u32,
+        shooter_count,
+        row_stride: groups.0 * 64,
+        face_size: face as f32,
+        tiles_per_row,
+        far: 2.0 * radius,
+        near: (radius * 1e-5).max(texel_world * 1e-3),
+        // Half a lightmap texel: off the surface, well inside any occluder.
+        receiver_offset: 0.5 * texel_world,
+        max_slope: 10.0,
+        chunk_count: (texels.texels.len() as u32).div_ceil(MEASURE_CHUNK).max(1),
+        atlas_width: texels.width,
+        cell: patches.cell,
+        in_plane: shooter_cull::in_plane(&texels.texels),
+        _pad: 0,
+    };
+    (params, Dispatch { shooter_count, face, tiles_per_row, tile_rows, groups, patch_groups })
+}
+
+/// The radius of the scene's bounding sphere about the centre of its
+/// bounds, with a margin so that geometry never touches a hemicube's far
+/// plane.
+fn scene_radius(scene: &Scene) -> f32 {
+    let (lo, hi) = scene.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
+    let centre = (lo + hi) * 0.5;
+    let radius = scene
+        .primitives
+        .iter()
+        .flat_map(|p| p.positions.iter())
+        .map(|&p| (Vec3::from(p) - centre).length())
+        .fold(0.0f32, f32::max);
+    (radius * 1.02).max(f32::MIN_POSITIVE * 1e6)
+}
+
+/// What the bounce pass uploads once.
+pub(super) struct Inputs<'a> {
+    pub(super) texels: &'a TexelSet,
+    /// Per texel: the share of its area that bounces (`overlaps`).
+    pub(super) shares: &'a [f32],
+    pub(super) patches: &'a Patches,
+    /// Per patch: the covered share of its texels' hemispheres.
+    pub(super) patch_coverage: &'a [f32],
+    pub(super) unshot: &'a [[f32; 4]],
+    pub(super) lightmap: &'a [[f32; 3]],
+}
+
+/// The buffers more than one pass binds, created once, with the parameters
+/// and layout they were made for.
+pub(super) struct Resources {
+    pub(super) params: BounceParams,
+    pub(super) dispatch: Dispatch,
+    /// `params` as a uniform buffer.
+    pub(super) params_buffer: wgpu::Buffer,
+    pub(super) texels: wgpu::Buffer,
+    /// Per texel: the share of its area that bounces light (`overlaps`).
+    pub(super) shares: wgpu::Buffer,
+    pub(super) patches: wgpu::Buffer,
+    /// Per texel: unshot radiance ΔL (read by the power pass, spent by the gather).
+    pub(super) unshot: wgpu::Buffer,
+    /// Per texel: L_lm, accumulated by the gather.
+    pub(super) lightmap: wgpu::Buffer,
+    /// Per patch: its unshot power and where it lies (power pass → select).
+    pub(super) patch_power: wgpu::Buffer,
+    pub(super) patch_origin: wgpu::Buffer,
+    /// Per patch: its slot + 1 once chosen in the batch (select → gather).
+    pub(super) chosen: wgpu::Buffer,
+    /// The batch's shooters (select → power pass, culls, gather).
+    pub(super) shooters: wgpu::Buffer,
+    /// Five faces per shooter slot (select → hemicube cull and render).
+    pub(super) hemicube_faces: wgpu::Buffer,
+    /// Each shooter's unshot light and area centroid by sub-cells of its
+    /// patch (power pass → gather).
+    pub(super) shooter_cells: wgpu::Buffer,
+    /// The batch's hemicube depth atlas (hemicube → gather).
+    pub(super) depth_view: wgpu::TextureView,
+}
+
+impl Resources {
+    pub(super) fn new(gpu: &Gpu, inputs: &Inputs, params: BounceParams, dispatch: Dispatch) -> Resources {
+        let Inputs { texels, shares, patches, unshot, lightmap, .. } = *inputs;
+        let Dispatch { face, tiles_per_row, tile_rows, .. } = dispatch;
+        let none = wgpu::BufferUsages::empty();
+        let depth = gpu.depth_target("solve_hemicube depth", 3 * face * tiles_per_row, face * tile_rows);
+        let lightmap4: Vec<[f32; 4]> = lightmap.iter().map(|l| [l[0], l[1], l[2], 0.0]).collect();
+        let patch_count = patches.patches.len();
+        Resources {
+            params,
+            dispatch,
+            params_buffer: gpu.uniform_buffer("solve_shoot params", &params),
+            texels: gpu.storage_buffer("solve_shoot texels", &texels.texels, none),
+            shares: gpu.storage_buffer("solve_shoot shares", shares, none),
+            patches: gpu.storage_buffer("solve_select patches", &patches.patches, none),
+            unshot: gpu.storage_buffer("solve_shoot unshot", unshot, wgpu::BufferUsages::COPY_SRC),
+            lightmap: gpu.storage_buffer("solve_shoot lightmap", &lightmap4, wgpu::BufferUsages::COPY_SRC),
+            patch_power: gpu.zeroed_storage_buffer::<[f32; 4]>("solve_patch_power power", patch_count, none),
+            patch_origin: gpu.zeroed_storage_buffer::<[f32; 4]>("solve_patch_power origins", patch_count, none),
+            chosen: gpu.zeroed_storage_buffer::<u32>("solve_select chosen", patch_count, none),
+            shooters: gpu.storage_buffer(
+                "solve_select shooters",
+                &[Shooter::default(); MAX_SHOOTERS as usize],
+                wgpu::BufferUsages::UNIFORM,
+            ),
+            hemicube_faces: gpu.zeroed_storage_buffer::<HemicubeFace>(
+                "solve_select hemicube faces",
+                5 * MAX_SHOOTERS as usize,
+                wgpu::BufferUsages::VERTEX,
+            ),
+            shooter_cells: gpu.storage_buffer(
+                "solve_patch_power shooter cells",
+                // Per slot and sub-cell: unshot power and area, the centroid, the normal.
+                &vec![[0f32; 4]; MAX_SHOOTERS as usize * SUB_CELL_ROWS * SUB_CELL_COUNT],
+                wgpu::BufferUsages::UNIFORM,
+            ),
+            depth_view: depth.create_view(&Default::default()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gpu::Shader;
+    use crate::gpu::mirror::assert_mirrors;
+
+    #[test]
+    fn the_bounce_params_mirror_common_wgsl() {
+        assert_mirrors!(
+            Shader::SolveShoot,
+            "BounceParams",
+            BounceParams {
+                texel_count,
+                patch_count,
+                shooter_count,
+                row_stride,
+                face_size,
+                tiles_per_row,
+                far,
+                near,
+                receiver_offset,
+                max_slope,
+                chunk_count,
+                atlas_width,
+                cell,
+                in_plane,
+            }
+        );
+    }
+}

@@ -1,0 +1,297 @@
+//! The gather (`solve_shoot`): every texel takes the light of the batch's
+//! shooters that may light its group of 64 (`main`, the far field, after
+//! `shooter_cull`), and `main` lists the receivers next to a shooter, whose
+//! exact near field `near_field` then gathers, in a pass `near_dispatch`
+//! sizes on the GPU. Where the form factors are normalized, `measure` and
+//! `finish` first sum those of each patch shooting for the first time and
+//! write its scale.
+
+use super::bounce::MAX_SHOOTERS;
+use super::resources::{Inputs, Resources};
+use crate::gpu::{self, Gpu, Shader};
+
+/// Texels one workgroup of the form-factor measure pass sums
+/// (`MEASURE_CHUNK` in solve_shoot.wgsl).
+pub(super) const MEASURE_CHUNK: u32 = 4096;
+/// Shooter slots one workgroup of the measure pass sums for
+/// (`MEASURE_SLOTS` in solve_shoot.wgsl).
+const MEASURE_SLOTS: u32 = 8;
+
+pub(super) struct Shoot {
+    measure: wgpu::ComputePipeline,
+    finish: wgpu::ComputePipeline,
+    main: wgpu::ComputePipeline,
+    near_dispatch: wgpu::ComputePipeline,
+    near_field: wgpu::ComputePipeline,
+    /// Group 0 of every entry point but `near_dispatch`.
+    group: wgpu::BindGroup,
+    /// Group 1: the slots' scales, written by `finish`, read by `main`.
+    scales: SlotScales,
+    /// `near_dispatch`'s own group.
+    near_dispatch_group: wgpu::BindGroup,
+    /// Receivers in a shooter's near field: a count, then (texel, slots) pairs.
+    near_list: wgpu::Buffer,
+    /// The near-field pass's workgroup counts, written on the GPU from the
+    /// list's length (so no batch waits to read it back).
+    near_args: wgpu::Buffer,
+    /// Whether each patch's form factors are normalized (`measure`, `finish`).
+    normalized: bool,
+    /// Workgroups of `measure` (texel chunks × groups of slots), of
+    /// `finish` (one a slot) and of `main` (over the texels).
+    measure_groups: (u32, u32),
+    shooter_count: u32,
+    groups: (u32, u32),
+}
+
+/// The buffers only the gather binds.
+struct Buffers {
+    texel_patch: wgpu::Buffer,
+    /// Per patch: the scale of its form factors, 0 until it first shoots.
+    patch_scale: wgpu::Buffer,
+    /// The batch's shooters' scales by slot (written by `finish`), which
+    /// `main` reads as a uniform buffer.
+    slot_scales: wgpu::Buffer,
+    /// Near- and far-field sums of `measure` per shooter slot and texel chunk.
+    partials: wgpu::Buffer,
+    near_list: wgpu::Buffer,
+    near_args: wgpu::Buffer,
+}
+
+impl Buffers {
+    fn new(gpu: &Gpu, inputs: &Inputs, chunk_count: u32) -> Buffers {
+        let (none, patch_count) = (wgpu::BufferUsages::empty(), inputs.patches.patches.len());
+        Buffers {
+            texel_patch: gpu.storage_buffer("solve_shoot texel patches", &inputs.patches.texel_patch, none),
+            patch_scale: gpu.zeroed_storage_buffer::<f32>(
+                "solve_shoot patch scales",
+                patch_count,
+                wgpu::BufferUsages::COPY_DST,
+            ),
+            slot_scales: gpu.storage_buffer(
+                "solve_shoot slot scales",
+                &[1f32; MAX_SHOOTERS as usize],
+                wgpu::BufferUsages::UNIFORM,
+            ),
+            partials: gpu.zeroed_storage_buffer::<f32>(
+                "solve_shoot measured sums",
+                (2 * MAX_SHOOTERS * chunk_count) as usize,
+                none,
+            ),
+            // A count (padded to 8 bytes), then at most one entry per texel.
+            near_list: gpu.zeroed_storage_buffer::<[u32; 2]>(
+                "solve_shoot near-field receivers",
+                1 + inputs.texels.texels.len().max(1),
+                wgpu::BufferUsages::COPY_DST,
+            ),
+            near_args: gpu.zeroed_storage_buffer::<u32>(
+                "solve_shoot near-field dispatch",
+                3,
+                wgpu::BufferUsages::INDIRECT,
+            ),
+        }
+    }
+}
+
+impl Shoot {
+    /// `group_shooters`: each texel group's slots (`shooter_cull`'s).
+    pub(super) fn new(
+        gpu: &Gpu,
+        r: &Resources,
+        inputs: &Inputs,
+        group_shooters: &wgpu::Buffer,
+        normalized: bool,
+    ) -> Shoot {
+        let b = Buffers::new(gpu, inputs, r.params.chunk_count);
+        if !normalized {
+            // Every patch's scale known (1): the measure and finish passes skip.
+            let ones = vec![1f32; inputs.patches.patches.len().max(1)];
+            gpu.queue.write_buffer(&b.patch_scale, 0, bytemuck::cast_slice(&ones));
+        }
+        let layout = bind_group_layout(gpu);
+        let group = bind_group(gpu, &layout, r, &b, group_shooters);
+        let scales = SlotScales::new(gpu, &b.slot_scales);
+        let (near_dispatch_layout, near_dispatch_group) = near_dispatch_bindings(gpu, &b);
+        let pipeline =
+            |entry, layouts: &[&wgpu::BindGroupLayout]| gpu.compute_pipeline(Shader::SolveShoot, entry, layouts);
+        let shooter_count = r.dispatch.shooter_count;
+        Shoot {
+            measure: pipeline("measure", &[&layout]),
+            finish: pipeline("finish", &[&layout, &scales.write_layout]),
+            main: pipeline("main", &[&layout, &scales.read_layout]),
+            near_dispatch: pipeline("near_dispatch", &[&near_dispatch_layout]),
+            near_field: pipeline("near_field", &[&layout]),
+            group,
+            scales,
+            near_dispatch_group,
+            near_list: b.near_list,
+            near_args: b.near_args,
+            normalized,
+            measure_groups: (r.params.chunk_count, shooter_count.div_ceil(MEASURE_SLOTS)),
+            shooter_count,
+            groups: r.dispatch.groups,
+        }
+    }
+
+    /// Empties the near-field list (its count), first in each batch.
+    pub(super) fn clear_near_list(&self, encoder: &mut wgpu::CommandEncoder) {
+        encoder.clear_buffer(&self.near_list, 0, Some(8));
+    }
+
+    /// The normalization where it applies, the far field of every receiver,
+    /// and the size of the near-field pass, into the pass `shooter_cull`
+    /// recorded its slots in.
+    pub(super) fn record_far_field(&self, pass: &mut wgpu::ComputePass) {
+        pass.set_bind_group(0, &self.group, &[]);
+        if self.normalized {
+            pass.set_pipeline(&self.measure);
+            pass.dispatch_workgroups(self.measure_groups.0, self.measure_groups.1, 1);
+            pass.set_pipeline(&self.finish);
+            pass.set_bind_group(1, &self.scales.write_group, &[]);
+            pass.dispatch_workgroups(self.shooter_count, 1, 1);
+        }
+        pass.set_pipeline(&self.main);
+        pass.set_bind_group(1, &self.scales.read_group, &[]);
+        pass.dispatch_workgroups(self.groups.0, self.groups.1, 1);
+        pass.set_pipeline(&self.near_dispatch);
+        pass.set_bind_group(0, &self.near_dispatch_group, &[]);
+        pass.dispatch_workgroups(1, 1, 1);
+    }
+
+    /// The near field only for the receivers listed (a few per shooter), in
+    /// a pass of its own: its workgroup counts are written by the pass before.
+    pub(super) fn record_near_field(&self, encoder: &mut wgpu::CommandEncoder) {
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        pass.set_bind_group(0, &self.group, &[]);
+        pass.set_pipeline(&self.near_field);
+        pass.dispatch_workgroups_indirect(&self.near_args, 0);
+    }
+}
+
+/// Group 0 of every entry point but `near_dispatch`: the gather, its
+/// normalization and the near field.
+fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
+    let compute = wgpu::ShaderStages::COMPUTE;
+    gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("solve_shoot"),
+        entries: &[
+            // 0: BounceParams
+            gpu::uniform_entry(0, compute),
+            // 1: texels
+            gpu::storage_entry(1, true, compute),
+            // 2: patch of each texel
+            gpu::storage_entry(2, true, compute),
+            // 3: the batch's shooters
+            gpu::uniform_entry(3, compute),
+            // 4: lightmap L_lm (accumulated)
+            gpu::storage_entry(4, false, compute),
+            // 5: unshot ΔL (accumulated)
+            gpu::storage_entry(5, false, compute),
+            // 6: the batch's hemicube depth atlas
+            gpu::depth_texture_entry(6, compute),
+            // 7: per-patch form-factor scales
+            gpu::storage_entry(7, false, compute),
+            // 8: the measure pass's sums
+            gpu::storage_entry(8, false, compute),
+            // 10: receivers in a shooter's near field (listed, then gathered)
+            gpu::storage_entry(10, false, compute),
+            // 11: the shooters' light by sub-cells
+            gpu::uniform_entry(11, compute),
+            // 13: each texel's share of the area that bounces
+            gpu::storage_entry(13, true, compute),
+            // 14: each patch's slot + 1 in the batch
+            gpu::storage_entry(14, true, compute),
+            // 15: each texel group's slots (solve_shooter_cull)
+            gpu::storage_entry(15, true, compute),
+        ],
+    })
+}
+
+fn bind_group(
+    gpu: &Gpu,
+    layout: &wgpu::BindGroupLayout,
+    r: &Resources,
+    b: &Buffers,
+    group_shooters: &wgpu::Buffer,
+) -> wgpu::BindGroup {
+    fn buffer(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+        wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
+    }
+    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("solve_shoot"),
+        layout,
+        entries: &[
+            buffer(0, &r.params_buffer),
+            buffer(1, &r.texels),
+            buffer(2, &b.texel_patch),
+            buffer(3, &r.shooters),
+            buffer(4, &r.lightmap),
+            buffer(5, &r.unshot),
+            wgpu::BindGroupEntry { binding: 6, resource: wgpu::BindingResource::TextureView(&r.depth_view) },
+            buffer(7, &b.patch_scale),
+            buffer(8, &b.partials),
+            buffer(10, &b.near_list),
+            buffer(11, &r.shooter_cells),
+            buffer(13, &r.shares),
+            buffer(14, &r.chosen),
+            buffer(15, group_shooters),
+        ],
+    })
+}
+
+/// The slots' form-factor scales: written by `finish`, read by `main` as a
+/// uniform buffer, so in a group of each one's own.
+struct SlotScales {
+    write_layout: wgpu::BindGroupLayout,
+    write_group: wgpu::BindGroup,
+    read_layout: wgpu::BindGroupLayout,
+    read_group: wgpu::BindGroup,
+}
+
+impl SlotScales {
+    fn new(gpu: &Gpu, slot_scales: &wgpu::Buffer) -> SlotScales {
+        let compute = wgpu::ShaderStages::COMPUTE;
+        let layout = |label, entry| {
+            gpu.device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries: &[entry] })
+        };
+        // 1: the scales (written by `finish`)
+        let write_layout = layout("solve_shoot slot scales (written)", gpu::storage_entry(1, false, compute));
+        // 0: the scales (read by `main`)
+        let read_layout = layout("solve_shoot slot scales", gpu::uniform_entry(0, compute));
+        let group = |label, layout, binding| {
+            gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(label),
+                layout,
+                entries: &[wgpu::BindGroupEntry { binding, resource: slot_scales.as_entire_binding() }],
+            })
+        };
+        let write_group = group("solve_shoot slot scales (written)", &write_layout, 1);
+        let read_group = group("solve_shoot slot scales", &read_layout, 0);
+        SlotScales { write_layout, write_group, read_layout, read_group }
+    }
+}
+
+/// `near_dispatch`'s bindings, apart from the shots' group: its output is
+/// the near-field pass's indirect arguments, which no bind group of that
+/// pass may hold.
+fn near_dispatch_bindings(gpu: &Gpu, b: &Buffers) -> (wgpu::BindGroupLayout, wgpu::BindGroup) {
+    let compute = wgpu::ShaderStages::COMPUTE;
+    let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("solve_shoot near_dispatch"),
+        entries: &[
+            // 10: the near-field list (its count)
+            gpu::storage_entry(10, false, compute),
+            // 12: the workgroup counts (written)
+            gpu::storage_entry(12, false, compute),
+        ],
+    });
+    let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("solve_shoot near_dispatch"),
+        layout: &layout,
+        entries: &[
+            wgpu::BindGroupEntry { binding: 10, resource: b.near_list.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 12, resource: b.near_args.as_entire_binding() },
+        ],
+    });
+    (layout, group)
+}
