@@ -64,7 +64,7 @@ use crate::reference::Probes;
 use crate::scene::Scene;
 use crate::texelize::{Texel, TexelSet};
 
-/// Shooter slots per batch (`MAX_SHOOTERS` in common.wgsl): a near-field
+/// Shooter slots per batch (`MAX_SHOOTERS` in include/bounce.wgsl): a near-field
 /// receiver lists the slots it is near as bits of one u32.
 pub const MAX_SHOOTERS: u32 = 32;
 const _: () = assert!(MAX_SHOOTERS <= u32::BITS);

@@ -160,21 +160,19 @@ impl Casters {
         true
     }
 
-    /// A depth-only pipeline for casters: `fragment` None for opaque triangles.
-    /// `instances` lays out the per-instance attributes (locations 5 on):
-    /// a CPU driver fetches an instance's attributes once per draw, where a
-    /// buffer read indexed by the instance costs a load per vertex and lane
-    /// (on lavapipe most of the hemicubes' time went there).
-    #[allow(clippy::too_many_arguments)]
+    /// A depth-only pipeline for casters, with its vertex and fragment entry
+    /// points (the fragment stage discards what alpha cuts out and writes no
+    /// colour). `instances` lays out the per-instance attributes (locations
+    /// 5 on): a CPU driver fetches an instance's attributes once per draw,
+    /// where a buffer read indexed by the instance costs a load per vertex
+    /// and lane.
     pub fn pipeline(
         gpu: &Gpu,
         label: &str,
         layout: &wgpu::PipelineLayout,
         module: &wgpu::ShaderModule,
-        vertex: &str,
+        [vertex, fragment]: [&str; 2],
         instances: wgpu::VertexBufferLayout<'_>,
-        fragment: Option<&str>,
-        targets: &[Option<wgpu::ColorTargetState>],
     ) -> wgpu::RenderPipeline {
         gpu.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some(label),
@@ -194,11 +192,11 @@ impl Casters {
                 bias: Default::default(),
             }),
             multisample: Default::default(),
-            fragment: fragment.map(|entry| wgpu::FragmentState {
+            fragment: Some(wgpu::FragmentState {
                 module,
-                entry_point: Some(entry),
+                entry_point: Some(fragment),
                 compilation_options: Default::default(),
-                targets,
+                targets: &[],
             }),
             multiview_mask: None,
             cache: None,

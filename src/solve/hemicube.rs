@@ -10,7 +10,7 @@ use super::resources::Resources;
 use crate::gpu::{self, Gpu, Shader};
 use crate::scene::Scene;
 
-/// Mirrors `HemicubeFace` in common.wgsl: one face of a shooter's hemicube,
+/// Mirrors `HemicubeFace` in include/hemicube.wgsl: one face of a shooter's hemicube,
 /// written on the GPU by the select pass.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable, Default)]
@@ -62,8 +62,7 @@ impl Hemicube {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let pipeline =
-            |label, vs, fs| Casters::pipeline(gpu, label, &pipeline_layout, &module, vs, FACE_INSTANCES, Some(fs), &[]);
+        let pipeline = |label, vs, fs| Casters::pipeline(gpu, label, &pipeline_layout, &module, [vs, fs], FACE_INSTANCES);
         Hemicube {
             opaque: pipeline("solve_hemicube", "vs_hemicube", "fs_hemicube"),
             masked: pipeline("solve_hemicube masked", "vs_hemicube_masked", "fs_hemicube_masked"),
@@ -77,7 +76,7 @@ impl Hemicube {
 
     /// Renders the five faces of every shooter's hemicube, each into its
     /// viewport of the depth atlas (the same layout `hemicube_viewport` in
-    /// common.wgsl reads): the casters `cull` listed for the face, or every
+    /// include/hemicube.wgsl reads): the casters `cull` listed for the face, or every
     /// caster.
     pub(super) fn render(&self, encoder: &mut wgpu::CommandEncoder, r: &Resources, cull: Option<&HemicubeCull>) {
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {

@@ -16,12 +16,12 @@ use crate::scene::Scene;
 use crate::texelize::TexelSet;
 
 /// Parts a shooter patch's light is summed by for the near field
-/// (`SUB_CELL_COUNT` in common.wgsl).
+/// (`SUB_CELL_COUNT` in include/bounce.wgsl).
 const SUB_CELL_COUNT: usize = 16;
 /// What is kept per sub-cell (power and area, centroid, normal; `SUB_CELL_ROWS`).
 const SUB_CELL_ROWS: usize = 3;
 
-/// Mirrors `BounceParams` in common.wgsl.
+/// Mirrors `BounceParams` in include/bounce.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
 pub(super) struct BounceParams {
@@ -207,7 +207,7 @@ mod tests {
     use crate::gpu::mirror::assert_mirrors;
 
     #[test]
-    fn the_bounce_params_mirror_common_wgsl() {
+    fn the_bounce_params_mirror_bounce_wgsl() {
         assert_mirrors!(
             Shader::SolveShoot,
             "BounceParams",

@@ -8,7 +8,7 @@ use bytemuck::{Pod, Zeroable};
 use super::resources::{Inputs, Resources};
 use crate::gpu::{self, Gpu, Shader, read_buffer};
 
-/// Mirrors `Shooter` in common.wgsl.
+/// Mirrors `Shooter` in include/bounce.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable, Default)]
 pub(super) struct Shooter {
@@ -26,7 +26,7 @@ pub(super) struct Shooter {
     _pad: u32,
 }
 
-/// Mirrors `BounceStats` in common.wgsl: the totals of a batch.
+/// Mirrors `BounceStats` in include/bounce.wgsl: the totals of a batch.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable, Default, Debug)]
 pub(super) struct GpuStats {
@@ -116,7 +116,7 @@ mod tests {
     use crate::gpu::mirror::assert_mirrors;
 
     #[test]
-    fn the_shooter_and_the_totals_mirror_common_wgsl() {
+    fn the_shooter_and_the_totals_mirror_bounce_wgsl() {
         assert_mirrors!(
             Shader::SolveShoot,
             "Shooter",
