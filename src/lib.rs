@@ -6,11 +6,26 @@
 //! Each stage is a module with one job and plain data between stages
 //! (`Scene`, `Atlas`, `TexelSet`, `LightSet`, `Solution`). `run` strings
 //! them together for the CLI; `bake_scene` does the in-memory part for tests
-//! and library users.
+//! and library users:
+//!
+//! ```no_run
+//! # fn main() -> anyhow::Result<()> {
+//! use std::path::Path;
+//! use bake::config::{BakeOptions, EnvironmentOptions};
+//!
+//! let gpu = bake::Gpu::new(None)?;
+//! let scene = bake::load_scene(Path::new("assets/room.glb"))?;
+//! let (lights, _) = bake::load_environment(Path::new("studio.exr"), &EnvironmentOptions::default())?;
+//! let baked = bake::bake_scene(&gpu, scene, Some(&lights), &BakeOptions::default(), &mut bake::progress::Silent)?;
+//! // Texel i of the atlas is baked.texels.texels[i]; its light (L_lm, linear RGB) is baked.solution.lightmap[i].
+//! let _ = (&baked.texels.texels[0], baked.solution.lightmap[0]);
+//! # Ok(())
+//! # }
+//! ```
 
 #![warn(clippy::too_many_lines)]
 
-// The front door: what a program embeding bake uses. `run` bakes what a
+// The front door: what a program embedding bake uses. `run` bakes what a
 // `Config` names into files (the CLI's whole job); `bake_scene` bakes a
 // loaded `Scene` in memory; `check` reads and checks a report.
 pub mod check;

@@ -4,6 +4,8 @@
 //! Stages never create a `Gpu`; `main` (or a test) makes one and passes it
 //! down, as wgpu's `hello_compute` example separates set-up from work.
 
+#[cfg(test)]
+mod form_factors;
 mod materials;
 #[cfg(test)]
 pub(crate) mod mirror;

@@ -5,10 +5,10 @@
 
 /// A shared piece of WGSL under `shaders/include/`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct Include {
+pub(super) struct Include {
     /// The file name, for messages.
     file: &'static str,
-    source: &'static str,
+    pub(super) source: &'static str,
 }
 
 macro_rules! include_wgsl {
@@ -18,11 +18,11 @@ macro_rules! include_wgsl {
 }
 
 /// PI, NO_TRIANGLE, the Texel struct, closest_barycentric, the light-space basis.
-const TEXEL: Include = include_wgsl!("texel.wgsl");
+pub(super) const TEXEL: Include = include_wgsl!("texel.wgsl");
 /// The bounce pass's records (Patch, Shooter, BounceParams, ...), sub-cells, luminance.
 const BOUNCE: Include = include_wgsl!("bounce.wgsl");
 /// Form factors to a parallelogram or a square (Lambert's contour integral).
-const FORM_FACTOR: Include = include_wgsl!("form_factor.wgsl");
+pub(super) const FORM_FACTOR: Include = include_wgsl!("form_factor.wgsl");
 /// A shooter's hemicube: faces, frames and depth-atlas viewports.
 const HEMICUBE: Include = include_wgsl!("hemicube.wgsl");
 /// Materials and texture sampling (mirrors `gpu::materials`).

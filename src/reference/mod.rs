@@ -83,8 +83,8 @@
 //! Emissive surfaces are sampled at every vertex too (`emitters.rs`): a
 //! point drawn on an emissive triangle, chosen by area × emission, with a
 //! shadow ray to it, combined with the cosine-sampled rays that hit an
-//! emitter by the balance heuristic. Without it a room lit by one panel
-//! needed tens of thousands of paths per point for 1 %.
+//! emitter by the balance heuristic. Without it a room lit by one small
+//! panel needs many times the paths for the same noise.
 //!
 //! # Robustness and scale
 //! Geometry is converted from f32 to f64 once. Möller–Trumbore runs in f64
@@ -169,8 +169,8 @@ pub struct ReferencePoint {
     /// behind that plane is inside the surface and never reaches the point,
     /// also where a smooth shading `normal` leans past it: a ray sent there
     /// would hit the point's own triangle from the front and count it as a
-    /// lit surface (measured on a lumpy statue under a uniform sky: over
-    /// half of its interreflected light came from such self-hits).
+    /// lit surface (on a lumpy mesh such self-hits can be most of its
+    /// interreflected light).
     pub face_normal: Option<[f32; 3]>,
 }
 

@@ -623,3 +623,101 @@ fn ambient_term(unshot: [f32; 4], closure: f64, albedo: [f64; 3], area: f64) -> 
         unshot[c].max(0.0) as f64 * closure / (area * (1.0 - reflect))
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::solve::patches::Patch;
+    use crate::texelize::Texel;
+
+    /// Texels of the given areas (their other fields do not matter here).
+    fn texels(areas: &[f32]) -> TexelSet {
+        let texels = areas.iter().map(|&area| Texel { area, ..Default::default() }).collect();
+        TexelSet { width: areas.len() as u32, height: 1, texels, tint: Vec::new() }
+    }
+
+    fn close(a: f64, b: f64) -> bool {
+        (a - b).abs() <= 1e-9 * b.abs().max(1e-30)
+    }
+
+    #[test]
+    fn the_ambient_term_is_every_later_bounce_of_the_unshot_light_summed() {
+        // Unshot power U lands with probability f, is reflected with ρ, lands
+        // again with f...: the scene receives U f Σ (ρ f)^k over its area.
+        let series = |u: f64, f: f64, rho: f64, area: f64| (0..2000).map(|k| u * f * (rho * f).powi(k)).sum::<f64>() / area;
+        for (f, albedo) in [(1.0, [0.5, 0.25, 0.8]), (0.3, [0.9, 0.0, 0.6]), (0.75, [0.1, 0.1, 0.1])] {
+            let got = ambient_term([2.0, 3.0, 0.5, 0.0], f, albedo, 4.0);
+            for (c, u) in [2.0, 3.0, 0.5].into_iter().enumerate() {
+                assert!(close(got[c], series(u, f, albedo[c], 4.0)), "f {f}, channel {c}: {got:?}");
+            }
+        }
+        // A closed white furnace never converges: the reflectance is held
+        // under 1 so the term stays finite.
+        let furnace = ambient_term([1.0, 1.0, 1.0, 0.0], 1.0, [1.0; 3], 2.0);
+        assert!(furnace.iter().all(|&v| v.is_finite() && v > 0.0), "{furnace:?}");
+        // Nothing lands in an open scene, on no area, or from negative power.
+        assert_eq!(ambient_term([1.0; 4], 0.0, [0.5; 3], 1.0), [0.0; 3]);
+        assert_eq!(ambient_term([1.0; 4], 1.0, [0.5; 3], 0.0), [0.0; 3]);
+        assert_eq!(ambient_term([-1.0, 0.0, 0.0, 0.0], 1.0, [0.5; 3], 1.0), [0.0; 3]);
+    }
+
+    #[test]
+    fn the_closure_is_the_share_of_shot_light_that_landed_and_a_closed_room_before_any_shot() {
+        assert_eq!(measured_closure(3.0, 4.0), 0.75);
+        // Rounding can land a hair more than was shot.
+        assert_eq!(measured_closure(4.0 + 1e-9, 4.0), 1.0);
+        assert_eq!(measured_closure(0.0, 0.0), 1.0);
+    }
+
+    #[test]
+    fn weights_have_an_area_weighted_mean_of_one() {
+        let set = texels(&[1.0, 3.0]);
+        // Mean (2·1 + 4·3) / 4 = 3.5.
+        let w = mean_one_weights(&set, &[2.0, 4.0]);
+        let f32_close = |a: f32, b: f64| (a as f64 - b).abs() < 1e-6;
+        assert!(f32_close(w[0], 4.0 / 7.0) && f32_close(w[1], 8.0 / 7.0), "{w:?}");
+        assert_eq!(mean_one_weights(&set, &[0.0, 0.0]), [0.0, 0.0]);
+    }
+
+    #[test]
+    fn the_ambient_term_goes_where_bounced_light_went_or_where_the_scene_covers_the_sky() {
+        let set = texels(&[1.0, 1.0]);
+        // The first texel got 0.5 more than its direct light, the second none.
+        let after = [[1.5, 1.5, 1.5, 0.0], [1.0, 1.0, 1.0, 0.0]];
+        let direct = [[1.0; 3], [1.0; 3]];
+        let coverage = [0.25, 0.75];
+        assert_eq!(ambient_weights(&set, &after, &direct, Some(&coverage), true), [2.0, 0.0]);
+        assert_eq!(ambient_weights(&set, &after, &direct, Some(&coverage), false), [0.5, 1.5]);
+        assert_eq!(ambient_weights(&set, &after, &direct, None, false), [1.0, 1.0]);
+    }
+
+    #[test]
+    fn bounced_luminance_is_the_light_above_the_direct_light() {
+        // Red and blue rose by 1, green fell (a later fix-up): Rec. 709 weights of red and blue.
+        let got = bounced_luminance([2.0, 2.0, 2.0, 0.0], [1.0, 3.0, 1.0]) as f64;
+        assert!((got - (0.2126 + 0.0722)).abs() < 1e-7, "{got}");
+    }
+
+    #[test]
+    fn covered_shares_weigh_texels_by_their_unshot_power() {
+        let set = texels(&[1.0, 1.0]);
+        // Luminance 1 on a covered texel and 3 on an open one: a quarter lands.
+        let unshot = [[1.0, 1.0, 1.0, 0.0], [3.0, 3.0, 3.0, 0.0]];
+        assert!(close(covered_share(&set, &unshot, &[1.0, 0.0]), 0.25));
+        assert_eq!(covered_share(&set, &[[0.0; 4]; 2], &[1.0, 0.0]), 0.0);
+    }
+
+    #[test]
+    fn a_patch_covers_the_area_weighted_mean_of_its_texels() {
+        let set = texels(&[1.0, 3.0, 2.0]);
+        let patches = Patches {
+            patches: vec![Patch { first: 0, count: 2, ..Default::default() }, Patch { first: 2, count: 1, ..Default::default() }],
+            members: vec![0, 1, 2],
+            texel_patch: vec![0, 0, 1],
+            cell: 1,
+        };
+        let got = patch_coverage(&set, &patches, Some(&[1.0, 0.0, 0.5]));
+        assert_eq!(got, [0.25, 0.5]);
+        assert_eq!(patch_coverage(&set, &patches, None), [1.0, 1.0]);
+    }
+}

@@ -48,15 +48,15 @@ const PROBE_SIDE: u32 = 4;
 /// A texel is in contact with a surface a probe ray meets within this
 /// many shooter-patch cells (world size of the patch grid's cell): the
 /// distance below which one hemicube and 16 sub-cells per patch misjudge
-/// the light between two surfaces. Measured on the corner fixture (3,000
-/// probes, courtyard): half a cell gave the RMSE of a whole one or two at
-/// half and a quarter of the cost.
+/// the light between two surfaces. On the corner fixture half a cell was as
+/// accurate as one or two, at a fraction of the cost.
 const REACH_CELLS: f64 = 0.5;
 /// Surfaces within this many lightmap texels also get their direct light
 /// traced: the depth maps' texels track the lightmap's.
 const DIRECT_REACH_TEXELS: f64 = 2.0;
-/// Gather rays per texel, per side of their stratified grid (256 rays): 32
-/// per side changed the corner fixture's RMSE by 0.02 points at 4× the cost.
+/// Gather rays per texel, per side of their stratified grid (256 rays):
+/// more changed the corner fixture's error by next to nothing at several
+/// times the cost.
 const GATHER_SIDE: u32 = 16;
 /// What the gather rays meet is kept for every round, 4 bytes a ray: past
 /// this many bytes the rays per texel are fewer (down to `MIN_GATHER_SIDE`²).
@@ -384,7 +384,7 @@ impl<'a> Tracer<'a> {
     /// direct pass (the shading normal's cosine weighs that part of the
     /// light): it is turned to skim the face, so that other surfaces still
     /// block it. (Blocked by the face, a faceted ball's underside over the
-    /// ground came out 7 % dark.)
+    /// ground came out dark.)
     fn direct(&self, t: &Texel, i: usize, o: DVec3, lights: &[Light]) -> Option<[f32; 3]> {
         let n = t.normal().as_dvec3();
         let f = face_of(t);

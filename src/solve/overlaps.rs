@@ -3,7 +3,8 @@
 //! primitives, a slab a centimetre over the ground. The depth maps cannot
 //! tell such surfaces apart, so each gets the place's light, and in the
 //! bounce pass each reflected it: light left that place once per surface
-//! (an open box standing on the ground came out 1.26× the reference inside).
+//! (an open box standing on the ground came out far brighter than the
+//! reference inside).
 //! A path meets one surface there. So each texel gets the share of its area
 //! that bounces light:
 //! - 1 where no other surface covers its position;

@@ -198,14 +198,13 @@ pub struct Sight<'a> {
 /// tracer's bounced light, BENCHMARKS.md). Only surfaces standing up from
 /// the patch (`STANDING_COS`) block a sight line, its own primitive's too
 /// (a wall merged into the ground's mesh, as exporters often do: cut by
-/// other primitives only, its foot's middle band read 0.90 instead of
-/// 0.95). Lines run over the patch, so a convex patch's own facets never
+/// other primitives only, its foot's middle band came out dark). Lines run over the patch, so a convex patch's own facets never
 /// meet one, and a concave one's rim is not turned that far. Surfaces
 /// lying along the patch do not block: a ball's
 /// or a ring's underside touching a floor cut its cells into slivers around
 /// the contact, whose parallelograms (their atlas cells' bounds) then lit
-/// the contact as if it were open floor (the corner fixture's ring: 4.7 %
-/// RMSE, 6.6–7.6 % in the variants that let them cut). An origin that sees
+/// the contact as if it were open floor (every variant that let them cut
+/// lost accuracy on the corner fixture's ring). An origin that sees
 /// none of its texels (under the floor, inside an object resting on them)
 /// leaves the group whole.
 fn split_by_sight(texels: &TexelSet, keyed: Vec<(Key, u32)>, texel_size: f32, sight: &Sight) -> Vec<(Key, u32)> {
