@@ -132,6 +132,7 @@ impl GpuScene {
     pub fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
         let compute = wgpu::ShaderStages::COMPUTE;
         let entries = [
+            // 0: the records (nodes, leaves, triangles), ROW texels to a row
             wgpu::BindGroupLayoutEntry {
                 binding: 0,
                 visibility: compute,
@@ -142,8 +143,11 @@ impl GpuScene {
                 },
                 count: None,
             },
+            // 1: SceneLayout (where each kind of record starts)
             crate::gpu::uniform_entry(1, compute),
+            // 2: the materials (their alpha cut-outs)
             crate::gpu::storage_entry(2, true, compute),
+            // 3, 4: the material textures and their sampler
             crate::gpu::texture_array_entry(3, compute),
             crate::gpu::sampler_entry(4, compute),
         ];
