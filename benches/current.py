@@ -3,8 +3,7 @@
 stage, and the fixtures' error against the CPU path tracer with the solve's
 time, each with the commit, date and adapter it ran on.
 
-    cargo build --release
-    python3 benches/current.py            # print the section
+    python3 benches/current.py            # build, then print the section
     python3 benches/current.py --write    # and replace it in BENCHMARKS.md
 
 --env-dir names the real captured HDRIs (default ../shared/env); fixtures'
@@ -170,13 +169,21 @@ def write(text):
         f.write(old[:start] + text + "\n" + old[end:])
 
 
+def build():
+    """This checkout's release binary, built first: the section names the
+    checked-out commit, so it must not measure a binary left from another."""
+    subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=ROOT, check=True)
+    return os.path.join(ROOT, "target/release/bake")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--bin", default=os.path.join(ROOT, "target/release/bake"))
+    parser.add_argument("--bin", help="a bake binary to measure (default: build this checkout's release binary)")
     parser.add_argument("--env-dir", default=os.path.join(ROOT, "../shared/env"))
     parser.add_argument("--write", action="store_true", help="replace the section in BENCHMARKS.md")
     args = parser.parse_args()
-    text = section(args.bin, args.env_dir)
+    binary = args.bin or build()
+    text = section(binary, args.env_dir)
     print(text)
     if args.write:
         write(text)
