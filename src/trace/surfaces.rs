@@ -78,9 +78,14 @@ impl Surfaces {
         let default_material = Material::default();
         let materials: Vec<&Material> = scene.materials.iter().chain(std::iter::once(&default_material)).collect();
         let cut_outs: Vec<Option<CutOut>> = materials.iter().map(|m| cut_out(m, &image_slots)).collect();
-        let needs_corners = |m: &Material, p: &ScenePrimitive| match textures {
-            Textures::CutOuts => cut_out(m, &image_slots).is_some_and(|c| c.base_texture.is_some()),
-            Textures::All => samples_an_image(m, &image_slots) || p.colors.is_some(),
+        // Per material: whether its triangles' UV sets are read (vertex
+        // colours add some with `Textures::All`).
+        let textured: Vec<bool> = match textures {
+            Textures::CutOuts => cut_outs.iter().map(|c| c.as_ref().is_some_and(|c| c.base_texture.is_some())).collect(),
+            Textures::All => materials.iter().map(|m| samples_an_image(m, &image_slots)).collect(),
+        };
+        let needs_corners = |material: u32, p: &ScenePrimitive| {
+            textured[material as usize] || (textures == Textures::All && p.colors.is_some())
         };
         let mut texcoords = Vec::new();
         let mut colors = Vec::new();
@@ -88,7 +93,7 @@ impl Surfaces {
             .into_iter()
             .map(|(pi, t, mut tri)| {
                 let primitive = &scene.primitives[pi];
-                if needs_corners(materials[tri.material as usize], primitive) {
+                if needs_corners(tri.material, primitive) {
                     tri.texcoords = texcoords.len() as u32;
                     texcoords.push(triangle_texcoords(primitive, t));
                     colors.push(triangle_colors(primitive, t));
