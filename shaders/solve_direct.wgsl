@@ -12,8 +12,10 @@
 // and a loop's body at least once; only the number of turns a loop takes
 // follows the data. So the lights are sorted first, in one loop of simple
 // arithmetic, into what each needs (nothing, the cap's share, a polygon
-// test, a walk through the hierarchy), and each kind is then gathered in a
-// loop of its own that turns as often as its lane with the most needs.
+// test, a walk through the hierarchy; and for the last two, whether the
+// cone crosses the face's horizon), and each kind is then gathered in a
+// loop of its own that turns as often as its lane with the most needs and
+// holds only what its kind needs.
 
 @group(0) @binding(0) var<uniform> params: DirectParams;
 // Three records a light: direction and cos α; L·Ω and Ω; sin α and rays.
@@ -48,6 +50,8 @@ const LOOP_CUT: u32 = 1u;
 const WALK_CUT: u32 = 2u;
 // Lights a batch holds (`direct::MAX_BATCH`), 32 to a word of bits.
 const WORDS: u32 = 8u;
+// `next_bit` past the last light.
+const NO_LIGHT: u32 = 0xffffffffu;
 
 // A convex polygon above the point's face, in registers: its corners and
 // the normal of its plane on the point's side (zero: no polygon).
@@ -169,9 +173,10 @@ fn cap_above(f: vec3f, c: vec3f, ca: f32, sa: f32) -> vec3f {
 // irradiance, `cap_above`). A cone wider than a hemisphere is the sphere
 // less the cap about its opposite direction.
 fn cap_factor(l: Light) -> f32 {
-    let narrow = cap_above(l.face, l.direction, max(l.ca, 0.0), l.sa);
-    let wide = 3.14159265 * l.face - cap_above(l.face, -l.direction, max(-l.ca, 0.0), l.sa);
-    let v = select(wide, narrow, l.ca > 0.0);
+    let narrow = l.ca > 0.0;
+    // (A vector `select` between ±direction miscompiled on lavapipe.)
+    let cap = cap_above(l.face, l.direction * select(-1.0, 1.0, narrow), abs(l.ca), l.sa);
+    let v = select(3.14159265 * l.face - cap, cap, narrow);
     return max(dot(l.normal, v), 0.0) / l.omega;
 }
 
@@ -220,6 +225,16 @@ fn light_at(k: u32, p: Texel) -> Light {
     );
 }
 
+// Adds a light whose cone is wholly above the face, `open` of it open: a
+// whole cone gives n·V/Ω = (1 + cos α)/2 · cos θ (`cap_factor` without its
+// arcs). Coverage as in `add_light`: the cone is in front of the face.
+fn add_plain_light(sums: ptr<function, Sums>, power: vec3f, ca: f32, omega: f32, cos_n: f32, open: f32) {
+    (*sums).irradiance += power * (0.5 + 0.5 * ca) * max(cos_n, 0.0) * open;
+    let weight = omega * max(cos_n, 0.0);
+    (*sums).facing += weight;
+    (*sums).blocked += weight * (1.0 - open);
+}
+
 // Adds light `l`, of which `open` of the cone's part above the face is open.
 fn add_light(sums: ptr<function, Sums>, l: Light, open: f32) {
     (*sums).irradiance += l.power * cap_factor(l) * open;
@@ -235,42 +250,88 @@ fn jitter_of(i: u32, k: u32) -> vec2f {
     return vec2f(f32(h & 0xffffu), f32(h >> 16u)) / 65536.0;
 }
 
-// Rays over a light's cone: first a few, spread over the whole cone; the
-// rest only where those disagree (a penumbra), since most lights are
-// wholly open or wholly blocked.
+// Rays a light gets first at a point (`ConeRays`).
 const FIRST_RAYS: u32 = 8u;
 
 var<private> rays_cast: u32;
 
-// Of light `k`'s rays at point `i` that leave the face, the share that
-// meet nothing: the polygons first and, with `walk`, the hierarchy. Where
-// none of them leaves the face (a cone that reaches just above it), one
-// more turn casts a ray through the middle of the sliver above the face.
+// One light's rays at one point: where the next goes, and what the earlier
+// ones found. A light's first few rays are spread over its whole cone; the
+// rest are cast only where those disagree (a penumbra), since most lights
+// are wholly open or wholly blocked. Where none of them leaves the face (a
+// cone that reaches just above it), one more ray goes through the middle of
+// the sliver above the face.
+struct ConeRays {
+    l: Light,
+    frame: mat3x3f,
+    jitter: vec2f,
+    sliver: vec3f,
+    next: u32,             // the next ray
+    count: u32,            // rays to cast, so far
+    open: u32,             // of the rays cast that leave the face, those that meet nothing
+    leaving: u32,
+}
+
+fn cone_rays(l: Light, k: u32, i: u32) -> ConeRays {
+    return ConeRays(l, basis(l.direction), jitter_of(i, k), sliver_ray(l), 0u, min(l.rays, FIRST_RAYS), 0u, 0u);
+}
+
+fn next_direction(c: ConeRays) -> vec3f {
+    return select(cone_ray(c.frame, c.l.ca, c.next, c.jitter), c.sliver, c.next == c.l.rays);
+}
+
+// Counts the ray just cast; true when it was the light's last.
+fn count_ray(c: ptr<function, ConeRays>, leaves: bool, blocked: bool) -> bool {
+    let j = (*c).next;
+    let rays = (*c).l.rays;
+    (*c).leaving += select(0u, 1u, leaves);
+    (*c).open += select(0u, 1u, leaves && !blocked);
+    // After the first rays, on to the rest only in a penumbra.
+    let split = (*c).open != 0u && (*c).open != (*c).leaving;
+    var count = select((*c).count, rays, j + 1u == FIRST_RAYS && split);
+    // None left the face: the rest of the rays, then the sliver's, once
+    // (it may graze the face and not leave it either).
+    let last = j + 1u == count;
+    count = select(count, select(rays, rays + 1u, count == rays), last && (*c).leaving == 0u && j < rays);
+    (*c).count = count;
+    (*c).next = j + 1u;
+    return j + 1u >= count;
+}
+
+// Of the rays that leave the face, the share that met nothing.
+fn share_open(c: ConeRays) -> f32 {
+    return select(f32(c.open) / f32(c.leaving), 0.0, c.leaving == 0u);
+}
+
+// Of light `l`'s rays at point `i` that leave the face, the share that
+// meet neither polygon (for a light no other blocker reaches: no walk).
+fn polygon_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers) -> f32 {
+    var c = cone_rays(l, k, i);
+    loop {
+        let d = next_direction(c);
+        if (count_ray(&c, dot(d, p.face_normal) > 0.0, meets(b.p0, o, d) || meets(b.p1, o, d))) {
+            break;
+        }
+    }
+    return share_open(c);
+}
+
+// Of light `l`'s rays at point `i` that leave the face, the share that
+// meet nothing: the polygons first and, with `walk`, the hierarchy.
 fn cone_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers, walk: bool) -> f32 {
-    let frame = basis(l.direction);
-    let jitter = jitter_of(i, k);
-    let sliver = sliver_ray(l);
-    var open = 0u;
-    var leaving = 0u;
-    var count = min(l.rays, FIRST_RAYS);
-    for (var j = 0u; j < count; j++) {
-        let d = select(cone_ray(frame, l.ca, j, jitter), sliver, j == l.rays);
+    var c = cone_rays(l, k, i);
+    loop {
+        let d = next_direction(c);
         let leaves = dot(d, p.face_normal) > 0.0;
         let hits_polygon = meets(b.p0, o, d) || meets(b.p1, o, d);
         let traced = walk && leaves && !hits_polygon && in_a_cone(b, d);
         rays_cast += select(0u, 1u, traced);
         let blocked = hits_polygon || occluded(o, d, 3.0e38, p.triangle, traced);
-        leaving += select(0u, 1u, leaves);
-        open += select(0u, 1u, leaves && !blocked);
-        // After the first rays, on to the rest only in a penumbra.
-        let split = open != 0u && open != leaving;
-        count = select(count, l.rays, j + 1u == FIRST_RAYS && split);
-        // None left the face: the rest of the rays, then the sliver's, once
-        // (it may graze the face and not leave it either).
-        let last = j + 1u == count;
-        count = select(count, select(l.rays, l.rays + 1u, count == l.rays), last && leaving == 0u && j < l.rays);
+        if (count_ray(&c, leaves, blocked)) {
+            break;
+        }
     }
-    return select(f32(open) / f32(leaving), 0.0, leaving == 0u);
+    return share_open(c);
 }
 
 // A ray through the middle of the part of light `l`'s cone above the face,
@@ -283,20 +344,29 @@ fn sliver_ray(l: Light) -> vec3f {
     return normalize(top + horizon);
 }
 
-// Turns of a loop over the set bits of `bits`, lowest first: the next
-// light, or none when they are all taken.
+// Turns of a loop over the set bits of a batch's words, lowest first: the
+// word being taken, its index, and which later words have bits left (a
+// mask: a loop looking for the next word would run at least once a turn).
 struct BitWalk {
     word: u32,
     index: u32,
+    words: u32,
 }
 
+// The lights of a batch's words from the first; `words` says which have bits set.
+fn bit_walk(words: u32) -> BitWalk {
+    return BitWalk(0u, 0u, words);
+}
+
+// The next light, or NO_LIGHT when they are all taken.
 fn next_bit(walk: ptr<function, BitWalk>, bits: ptr<function, array<u32, WORDS>>) -> u32 {
-    while ((*walk).word == 0u && (*walk).index + 1u < WORDS) {
-        (*walk).index += 1u;
+    if ((*walk).word == 0u && (*walk).words != 0u) {
+        (*walk).index = firstTrailingBit((*walk).words);
+        (*walk).words &= (*walk).words - 1u;
         (*walk).word = (*bits)[(*walk).index];
     }
     if ((*walk).word == 0u) {
-        return 0xffffffffu;
+        return NO_LIGHT;
     }
     let bit = firstTrailingBit((*walk).word);
     (*walk).word &= (*walk).word - 1u;
@@ -315,14 +385,21 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     var sums = Sums(vec3f(0.0), 0.0, 0.0);
     // Sorting: a light wholly above the face that no blocker can reach is
     // gathered here; the others go to the loops below.
-    var walks: array<u32, WORDS>;
-    var polygons: array<u32, WORDS>;
     var crossing: array<u32, WORDS>;
+    var polygons: array<u32, WORDS>;
+    var walks: array<u32, WORDS>;
+    var blocked_crossing: array<u32, WORDS>;
+    // Which of each kind's words have any.
+    var crossing_words = 0u;
+    var polygon_words = 0u;
+    var walk_words = 0u;
+    var blocked_crossing_words = 0u;
     var k = 0u;
     for (var w = 0u; w < WORDS; w++) {
-        var walk_bits = 0u;
-        var polygon_bits = 0u;
         var crossing_bits = 0u;
+        var polygon_bits = 0u;
+        var walk_bits = 0u;
+        var blocked_crossing_bits = 0u;
         for (var bit = 0u; bit < 32u && k < params.light_count; bit++) {
             let head = lights[3u * k];
             let power = lights[3u * k + 1u];
@@ -336,52 +413,70 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             let polygon = lit && !walk && (reaches_plane(b.p0, head.xyz, sa) || reaches_plane(b.p1, head.xyz, sa));
             let crosses = lit && !walk && !polygon && cos_f < sa;
             let plain = lit && !walk && !polygon && !crosses;
-            // A whole cone above the face gives n·V/Ω = (1 + cos α)/2 · cos θ.
-            sums.irradiance += select(vec3f(0.0), power.rgb * (0.5 + 0.5 * ca) * max(cos_n, 0.0), plain);
-            sums.facing += select(0.0, power.w * max(cos_n, 0.0), plain);
-            walk_bits |= select(0u, 1u << bit, walk);
-            polygon_bits |= select(0u, 1u << bit, polygon);
+            add_plain_light(&sums, select(vec3f(0.0), power.rgb, plain), ca, select(0.0, power.w, plain), cos_n, 1.0);
+            // The whole cone above the face: the plain factor, times what rays find open.
+            let above = ca > 0.0 && cos_f >= sa;
             crossing_bits |= select(0u, 1u << bit, crosses);
+            polygon_bits |= select(0u, 1u << bit, polygon && above);
+            walk_bits |= select(0u, 1u << bit, walk && above);
+            blocked_crossing_bits |= select(0u, 1u << bit, (walk || polygon) && !above);
             k += 1u;
         }
-        walks[w] = walk_bits;
-        polygons[w] = polygon_bits;
         crossing[w] = crossing_bits;
+        polygons[w] = polygon_bits;
+        walks[w] = walk_bits;
+        blocked_crossing[w] = blocked_crossing_bits;
+        crossing_words |= select(0u, 1u << w, crossing_bits != 0u);
+        polygon_words |= select(0u, 1u << w, polygon_bits != 0u);
+        walk_words |= select(0u, 1u << w, walk_bits != 0u);
+        blocked_crossing_words |= select(0u, 1u << w, blocked_crossing_bits != 0u);
     }
     // Lights only the point's own surface hides part of.
     var finished = 0u;
-    var bits = BitWalk(crossing[0], 0u);
+    var bits = bit_walk(crossing_words);
     loop {
         let light = next_bit(&bits, &crossing);
-        if (light == 0xffffffffu) {
+        if (light == NO_LIGHT) {
             finished += 1u;
             break;
         }
         add_light(&sums, light_at(light, p), 1.0);
     }
     // Lights only the polygons may block.
-    bits = BitWalk(polygons[0], 0u);
+    bits = bit_walk(polygon_words);
     loop {
         let light = next_bit(&bits, &polygons);
-        if (light == 0xffffffffu) {
+        if (light == NO_LIGHT) {
             finished += 1u;
             break;
         }
         let l = light_at(light, p);
-        add_light(&sums, l, cone_visibility(l, light, i, p, o, b, false));
+        add_plain_light(&sums, l.power, l.ca, l.omega, l.cos_n, polygon_visibility(l, light, i, p, o, b));
     }
     // Lights anything may block.
-    bits = BitWalk(walks[0], 0u);
+    bits = bit_walk(walk_words);
     loop {
         let light = next_bit(&bits, &walks);
-        if (light == 0xffffffffu) {
+        if (light == NO_LIGHT) {
+            finished += 1u;
+            break;
+        }
+        let l = light_at(light, p);
+        add_plain_light(&sums, l.power, l.ca, l.omega, l.cos_n, cone_visibility(l, light, i, p, o, b, true));
+    }
+    // Lights something may block that cross the face's horizon (few: the
+    // polygons' lights among them walk too, finding nothing in the cones).
+    bits = bit_walk(blocked_crossing_words);
+    loop {
+        let light = next_bit(&bits, &blocked_crossing);
+        if (light == NO_LIGHT) {
             finished += 1u;
             break;
         }
         let l = light_at(light, p);
         add_light(&sums, l, cone_visibility(l, light, i, p, o, b, true));
     }
-    if (k < params.light_count || finished < 3u) {
+    if (k < params.light_count || finished < 4u) {
         atomicOr(&status[0], LOOP_CUT);
     }
     if (trace_cut) {
