@@ -317,14 +317,14 @@ fn polygon_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers)
 }
 
 // Of light `l`'s rays at point `i` that leave the face, the share that
-// meet nothing: the polygons first and, with `walk`, the hierarchy.
-fn cone_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers, walk: bool) -> f32 {
+// meet nothing: the polygons first, then the hierarchy.
+fn cone_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers) -> f32 {
     var c = cone_rays(l, k, i);
     loop {
         let d = next_direction(c);
         let leaves = dot(d, p.face_normal) > 0.0;
         let hits_polygon = meets(b.p0, o, d) || meets(b.p1, o, d);
-        let traced = walk && leaves && !hits_polygon && in_a_cone(b, d);
+        let traced = leaves && !hits_polygon && in_a_cone(b, d);
         rays_cast += select(0u, 1u, traced);
         let blocked = hits_polygon || occluded(o, d, 3.0e38, p.triangle, traced);
         if (count_ray(&c, leaves, blocked)) {
@@ -462,7 +462,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             break;
         }
         let l = light_at(light, p);
-        add_plain_light(&sums, l.power, l.ca, l.omega, l.cos_n, cone_visibility(l, light, i, p, o, b, true));
+        add_plain_light(&sums, l.power, l.ca, l.omega, l.cos_n, cone_visibility(l, light, i, p, o, b));
     }
     // Lights something may block that cross the face's horizon (few: the
     // polygons' lights among them walk too, finding nothing in the cones).
@@ -474,7 +474,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             break;
         }
         let l = light_at(light, p);
-        add_light(&sums, l, cone_visibility(l, light, i, p, o, b, true));
+        add_light(&sums, l, cone_visibility(l, light, i, p, o, b));
     }
     if (k < params.light_count || finished < 4u) {
         atomicOr(&status[0], LOOP_CUT);
