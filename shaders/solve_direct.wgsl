@@ -19,17 +19,21 @@
 
 @group(0) @binding(0) var<uniform> params: DirectParams;
 // Three records a light: direction and cos α; L·Ω and Ω; sin α and rays.
-@group(0) @binding(1) var<uniform> lights: array<vec4f, 768>;
+@group(0) @binding(1) var<uniform> lights: array<vec4f, 3072>;
 @group(0) @binding(2) var<storage, read> points: array<Texel>;
 @group(0) @binding(3) var<storage, read> occluders: array<Occluders>;
 // Irradiance E (rgb) and coverage (blocked and total Ω cos θ over the
-// lights in front of the face) before this batch, and after it: a batch a
-// CPU driver's loop limit cut short is gathered again in halves.
-@group(0) @binding(4) var<storage, read> sums_before: array<vec4f>;
-@group(0) @binding(5) var<storage, read_write> sums_after: array<vec4f>;
-// [0]: bit 0 a batch cut short, bit 1 a ray's walk cut short; [1]: rays
-// cast; [2]: nodes and triangles their walks visited.
+// lights in front of the face), two records a point, each point's batch
+// added in place.
+@group(0) @binding(4) var<storage, read_write> totals: array<vec4f>;
+// With `params.listed`, the points to gather (else every point in turn).
+@group(0) @binding(5) var<storage, read> point_list: array<u32>;
+// [0]: bit 1 a ray's walk cut short; [1]: rays cast; [2]: nodes and
+// triangles their walks visited; [3]: points a CPU driver's loop limit cut
+// short, listed in `cut_points` (they add nothing; the host gathers the
+// batch again in halves at them).
 @group(0) @binding(6) var<storage, read_write> status: array<atomic<u32>, 4>;
+@group(0) @binding(7) var<storage, read_write> cut_points: array<u32>;
 
 // Mirrors `direct::DirectParams`.
 struct DirectParams {
@@ -38,7 +42,7 @@ struct DirectParams {
     light_count: u32,      // lights in this batch
     first_light: u32,      // the batch's first light in the whole set
     _pad3: f32,
-    _pad0: u32,
+    listed: u32,           // 1: the points are `point_list`'s
     _pad1: u32,
     _pad2: u32,
 }
@@ -46,10 +50,9 @@ struct DirectParams {
 // How far outside an edge of a polygon a ray still meets it, in the
 // edge's length (f32 rounding of the crossing point is far smaller).
 const POLYGON_SLACK: f32 = 1e-4;
-const LOOP_CUT: u32 = 1u;
 const WALK_CUT: u32 = 2u;
 // Lights a batch holds (`direct::MAX_BATCH`), 32 to a word of bits.
-const WORDS: u32 = 8u;
+const WORDS: u32 = 32u;
 // `next_bit` past the last light.
 const NO_LIGHT: u32 = 0xffffffffu;
 
@@ -375,10 +378,11 @@ fn next_bit(walk: ptr<function, BitWalk>, bits: ptr<function, array<u32, WORDS>>
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
-    let i = id.x + id.y * params.row_stride;
-    if (i >= params.point_count) {
+    let n = id.x + id.y * params.row_stride;
+    if (n >= params.point_count) {
         return;
     }
+    let i = select(n, point_list[n], params.listed != 0u);
     let p = points[i];
     let o = ray_origin(p.position, p.face_normal);
     let b = blockers_of(i, o);
@@ -476,18 +480,18 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         let l = light_at(light, p);
         add_light(&sums, l, cone_visibility(l, light, i, p, o, b));
     }
-    if (k < params.light_count || finished < 4u) {
-        atomicOr(&status[0], LOOP_CUT);
-    }
     if (trace_cut) {
         atomicOr(&status[0], WALK_CUT);
+    }
+    // Cut short: nothing is added, and the point is gathered again.
+    if (k < params.light_count || finished < 4u) {
+        cut_points[atomicAdd(&status[3], 1u)] = i;
+        return;
     }
     if (rays_cast > 0u) {
         atomicAdd(&status[1], rays_cast);
         atomicAdd(&status[2], trace_visits);
     }
-    let before_e = sums_before[2u * i];
-    let before_c = sums_before[2u * i + 1u];
-    sums_after[2u * i] = vec4f(before_e.rgb + sums.irradiance, 0.0);
-    sums_after[2u * i + 1u] = vec4f(before_c.x + sums.blocked, before_c.y + sums.facing, 0.0, 0.0);
+    totals[2u * i] += vec4f(sums.irradiance, 0.0);
+    totals[2u * i + 1u] += vec4f(sums.blocked, sums.facing, 0.0, 0.0);
 }

@@ -62,7 +62,9 @@ mod tests {
         row_stride: u32,
         light_count: u32,
         first_light: u32,
-        _pad: [u32; 4],
+        _pad3: f32,
+        listed: u32,
+        _pad: [u32; 2],
     }
 
     #[test]
@@ -70,7 +72,7 @@ mod tests {
         assert_mirrors!(
             Shader::SolveDirect,
             "DirectParams",
-            Params { point_count, row_stride, light_count, first_light }
+            Params { point_count, row_stride, light_count, first_light, listed }
         );
     }
 
@@ -118,12 +120,14 @@ mod tests {
             row_stride: u32,
             light_count: u32,
             first_light: u32,
-            spare: [u32; 4],
+            _pad3: f32,
+            listed: u32,
+            spare: [u32; 2],
         }
         assert_mirrors!(
             Shader::SolveDirect,
             "DirectParams",
-            Extra { point_count, row_stride, light_count, first_light, spare }
+            Extra { point_count, row_stride, light_count, first_light, listed, spare }
         );
     }
 }

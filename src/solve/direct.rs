@@ -11,8 +11,9 @@
 //! cone, turned per point, so a penumbra is soft and unbiased, and a wide or
 //! bright light gets more of them (`ray_count`).
 //!
-//! A CPU driver stops a shader's loops after 65,535 turns in all; a batch
-//! of lights that hits that limit anywhere is gathered again in halves.
+//! A CPU driver stops a shader's loops after 65,535 turns in all; the
+//! points where that cut a batch short add nothing, and the batch is
+//! gathered again in halves at them alone.
 
 use std::time::Instant;
 
@@ -28,8 +29,10 @@ use crate::scene::Scene;
 use crate::texelize::{Texel, TexelSet};
 use crate::trace::GpuScene;
 
-/// Lights one batch holds (the uniform array in solve_direct.wgsl).
-pub const MAX_BATCH: u32 = 256;
+/// Lights one batch holds (the uniform array in solve_direct.wgsl). Large:
+/// a lane's loops turn as often as the busiest lane's of its group, batch
+/// by batch, so fewer batches turn fewer times in all.
+pub const MAX_BATCH: u32 = 1024;
 /// Rays a point may cast in all where every light may be blocked: a light
 /// gets at least one, and more as it is wide (one per 1/`RAYS` of the
 /// sphere) or bright (one per 1/`RAYS` of the set's power), so that what a
@@ -46,8 +49,7 @@ const MAX_RAYS: u32 = 64;
 /// the light times the albedo.
 pub const SHADOWED_SHARE: f32 = 0.005;
 
-/// Status bits the pass reports (`status[0]` in solve_direct.wgsl).
-const LOOP_CUT: u32 = 1;
+/// Status bit the pass reports (`status[0]` in solve_direct.wgsl).
 const WALK_CUT: u32 = 2;
 
 /// What the direct pass did, for the report.
@@ -78,7 +80,9 @@ struct DirectParams {
     row_stride: u32,
     light_count: u32,
     first_light: u32,
-    _pad: [u32; 4],
+    _pad3: f32,
+    listed: u32,
+    _pad: [u32; 2],
 }
 
 /// What the direct pass found, per texel in `TexelSet` order.
@@ -114,11 +118,14 @@ impl GatherPipeline {
                 gpu::storage_entry(2, true, compute),
                 // 3: their occluders (solve_occluders)
                 gpu::storage_entry(3, true, compute),
-                // 4, 5: irradiance and coverage before the batch, and after it
-                gpu::storage_entry(4, true, compute),
-                gpu::storage_entry(5, false, compute),
-                // 6: status bits and the count of rays cast
+                // 4: irradiance and coverage, added to in place
+                gpu::storage_entry(4, false, compute),
+                // 5: the points to gather, when listed
+                gpu::storage_entry(5, true, compute),
+                // 6: status bits, the count of rays cast and of points cut short
                 gpu::storage_entry(6, false, compute),
+                // 7: the points cut short
+                gpu::storage_entry(7, false, compute),
             ],
         });
         let pipeline =
@@ -134,10 +141,11 @@ struct Batches<'a> {
     scene: &'a wgpu::BindGroup,
     points: wgpu::Buffer,
     occluders: wgpu::Buffer,
-    /// Irradiance and coverage, two records a point: the sums so far and the
-    /// buffer the next batch writes.
-    sums: [wgpu::Buffer; 2],
+    /// Irradiance and coverage, two records a point.
+    sums: wgpu::Buffer,
     status: wgpu::Buffer,
+    /// Bound as the point list where every point is gathered.
+    no_list: wgpu::Buffer,
     point_count: u32,
     rays: u64,
     /// Luminance of L·Ω that earns a light one ray (`RAYS`).
@@ -146,23 +154,28 @@ struct Batches<'a> {
 
 impl Batches<'_> {
     /// Gathers `lights` (at most `MAX_BATCH`, the first being light
-    /// `first_light` of the set) into the sums; false when a loop limit cut
-    /// it short and nothing was added.
-    fn batch(&mut self, lights: &[Light], first_light: u32) -> Result<bool> {
+    /// `first_light` of the set) into the sums at every point, or at the
+    /// `listed` ones (a buffer of indices, and how many); returns the points
+    /// a loop limit cut short, which added nothing, when there are any.
+    fn batch(&mut self, lights: &[Light], first_light: u32, listed: Option<&PointList>) -> Result<Option<PointList>> {
         let gpu = self.gpu;
-        let (groups_x, groups_y) = gpu.dispatch_size(self.point_count, 64);
+        let count = listed.map_or(self.point_count, |l| l.count);
+        let (groups_x, groups_y) = gpu.dispatch_size(count, 64);
         let params = DirectParams {
-            point_count: self.point_count,
+            point_count: count,
             row_stride: groups_x * 64,
             light_count: lights.len() as u32,
             first_light,
-            _pad: [0; 4],
+            _pad3: 0.0,
+            listed: listed.is_some() as u32,
+            _pad: [0; 2],
         };
         let params = gpu.uniform_buffer("solve_direct params", &params);
         let records = light_records(lights, self.power_per_ray);
         let lights_buffer = gpu.uniform_buffer("solve_direct lights", &records);
-        let buffers =
-            [&params, &lights_buffer, &self.points, &self.occluders, &self.sums[0], &self.sums[1], &self.status];
+        let cut = gpu.zeroed_storage_buffer::<u32>("solve_direct cut points", count as usize, wgpu::BufferUsages::COPY_SRC);
+        let list = listed.map_or(&self.no_list, |l| &l.buffer);
+        let buffers = [&params, &lights_buffer, &self.points, &self.occluders, &self.sums, list, &self.status, &cut];
         let group = gpu::bind_buffers(gpu, "solve_direct", &self.pass.layout, &buffers);
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         encoder.clear_buffer(&self.status, 0, None);
@@ -174,31 +187,42 @@ impl Batches<'_> {
             pass.dispatch_workgroups(groups_x, groups_y, 1);
         }
         gpu.queue.submit([encoder.finish()]);
-        let [flags, rays, _visits, _]: [u32; 4] =
+        let [flags, rays, _visits, cut_count]: [u32; 4] =
             read_buffer(gpu, &self.status, 4)?.try_into().expect("four status words");
         if flags & WALK_CUT != 0 {
             bail!("a ray's walk through the scene's hierarchy ran past its limit: the hierarchy is degenerate");
         }
-        if flags & LOOP_CUT != 0 {
-            return Ok(false);
-        }
         self.rays += rays as u64;
-        self.sums.swap(0, 1);
-        Ok(true)
+        if cut_count == 0 {
+            return Ok(None);
+        }
+        // In index order, whatever order the lanes listed them in: a lane's
+        // loops turn with its group's, so which points share a group must
+        // not vary from run to run.
+        let mut cut_points: Vec<u32> = read_buffer(gpu, &cut, cut_count as usize)?;
+        cut_points.sort_unstable();
+        let buffer = gpu.storage_buffer("solve_direct cut points", &cut_points, wgpu::BufferUsages::empty());
+        Ok(Some(PointList { buffer, count: cut_count }))
     }
 
-    /// Gathers `lights`, halving any batch a loop limit cuts short; returns
-    /// the batches it took.
-    fn lights(&mut self, lights: &[Light], first_light: u32) -> Result<usize> {
-        if self.batch(lights, first_light)? {
+    /// Gathers `lights` at every point or the `listed` ones, again in halves
+    /// at the points a loop limit cuts short; returns the passes it took.
+    fn lights(&mut self, lights: &[Light], first_light: u32, listed: Option<&PointList>) -> Result<usize> {
+        let Some(cut) = self.batch(lights, first_light, listed)? else {
             return Ok(1);
-        }
+        };
         if lights.len() == 1 {
             bail!("the GPU driver's loop limit cut the direct pass short at a single light");
         }
         let (a, b) = lights.split_at(lights.len() / 2);
-        Ok(self.lights(a, first_light)? + self.lights(b, first_light + a.len() as u32)?)
+        Ok(1 + self.lights(a, first_light, Some(&cut))? + self.lights(b, first_light + a.len() as u32, Some(&cut))?)
     }
+}
+
+/// Points of a gather listed by index (those a batch cut short).
+struct PointList {
+    buffer: wgpu::Buffer,
+    count: u32,
 }
 
 /// Three records per light: its direction and the cosine of its cone's
@@ -273,18 +297,13 @@ impl<'a> DirectPass<'a> {
             scene: &self.scene_group,
             points: point_buffer,
             occluders: occluder_buffer,
-            sums: [0, 1].map(|_| {
-                gpu.zeroed_storage_buffer::<[f32; 4]>(
-                    "solve_direct sums",
-                    2 * point_count,
-                    wgpu::BufferUsages::COPY_SRC,
-                )
-            }),
+            sums: gpu.zeroed_storage_buffer::<[f32; 4]>("solve_direct sums", 2 * point_count, wgpu::BufferUsages::COPY_SRC),
             status: gpu.zeroed_storage_buffer::<u32>(
                 "solve_direct status",
                 4,
                 wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
             ),
+            no_list: gpu.zeroed_storage_buffer::<u32>("solve_direct no list", 1, wgpu::BufferUsages::empty()),
             point_count: point_count as u32,
             rays: 0,
             power_per_ray: power_per_ray(lights),
@@ -293,10 +312,10 @@ impl<'a> DirectPass<'a> {
         let total = lights.lights.len() as u64;
         let mut count = 0;
         for (index, chunk) in lights.lights.chunks(batch).enumerate() {
-            count += batches.lights(chunk, (index * batch) as u32)?;
+            count += batches.lights(chunk, (index * batch) as u32, None)?;
             progress((index * batch + chunk.len()) as u64, total);
         }
-        let sums: Vec<[f32; 4]> = read_buffer(gpu, &batches.sums[0], 2 * point_count)?;
+        let sums: Vec<[f32; 4]> = read_buffer(gpu, &batches.sums, 2 * point_count)?;
         gpu.check("solve (direct)")?;
         Ok(Gathered {
             irradiance: sums.chunks_exact(2).map(|s| [s[0][0], s[0][1], s[0][2]]).collect(),
@@ -379,7 +398,7 @@ mod tests {
         assert_mirrors!(
             Shader::SolveDirect,
             "DirectParams",
-            DirectParams { point_count, row_stride, light_count, first_light }
+            DirectParams { point_count, row_stride, light_count, first_light, listed }
         );
     }
 }

@@ -50,7 +50,7 @@ use punctual::{Punctual, PunctualStats};
 /// Options of the solve, with their defaults.
 #[derive(Clone, Debug)]
 pub struct SolveOptions {
-    /// Lights gathered per GPU batch of the direct pass (at most 256).
+    /// Lights gathered per GPU batch of the direct pass (at most `direct::MAX_BATCH`).
     pub batch_size: u32,
     /// Gather texels on a sharp change of direct light at sub-samples of
     /// their footprint (`supersample`).
@@ -67,7 +67,7 @@ pub struct SolveOptions {
 impl Default for SolveOptions {
     fn default() -> Self {
         SolveOptions {
-            batch_size: 256,
+            batch_size: 1024,
             supersample: true,
             contact: true,
             punctual: true,
