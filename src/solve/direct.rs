@@ -146,6 +146,9 @@ struct Batches<'a> {
     status: wgpu::Buffer,
     /// Bound as the point list where every point is gathered.
     no_list: wgpu::Buffer,
+    /// Where a pass lists the points it cut short (room for every point;
+    /// each retry reads a sorted copy, so one buffer serves them all).
+    cut: wgpu::Buffer,
     point_count: u32,
     rays: u64,
     /// Luminance of L·Ω that earns a light one ray (`RAYS`).
@@ -173,9 +176,8 @@ impl Batches<'_> {
         let params = gpu.uniform_buffer("solve_direct params", &params);
         let records = light_records(lights, self.power_per_ray);
         let lights_buffer = gpu.uniform_buffer("solve_direct lights", &records);
-        let cut = gpu.zeroed_storage_buffer::<u32>("solve_direct cut points", count as usize, wgpu::BufferUsages::COPY_SRC);
         let list = listed.map_or(&self.no_list, |l| &l.buffer);
-        let buffers = [&params, &lights_buffer, &self.points, &self.occluders, &self.sums, list, &self.status, &cut];
+        let buffers = [&params, &lights_buffer, &self.points, &self.occluders, &self.sums, list, &self.status, &self.cut];
         let group = gpu::bind_buffers(gpu, "solve_direct", &self.pass.layout, &buffers);
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         encoder.clear_buffer(&self.status, 0, None);
@@ -199,7 +201,7 @@ impl Batches<'_> {
         // In index order, whatever order the lanes listed them in: a lane's
         // loops turn with its group's, so which points share a group must
         // not vary from run to run.
-        let mut cut_points: Vec<u32> = read_buffer(gpu, &cut, cut_count as usize)?;
+        let mut cut_points: Vec<u32> = read_buffer(gpu, &self.cut, cut_count as usize)?;
         cut_points.sort_unstable();
         let buffer = gpu.storage_buffer("solve_direct cut points", &cut_points, wgpu::BufferUsages::empty());
         Ok(Some(PointList { buffer, count: cut_count }))
@@ -304,6 +306,7 @@ impl<'a> DirectPass<'a> {
                 wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
             ),
             no_list: gpu.zeroed_storage_buffer::<u32>("solve_direct no list", 1, wgpu::BufferUsages::empty()),
+            cut: gpu.zeroed_storage_buffer::<u32>("solve_direct cut points", point_count, wgpu::BufferUsages::COPY_SRC),
             point_count: point_count as u32,
             rays: 0,
             power_per_ray: power_per_ray(lights),
