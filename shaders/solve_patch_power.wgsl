@@ -33,6 +33,17 @@
 @group(0) @binding(9) var<storage, read> shares: array<f32>;
 // Per member (`members`' order): its texel's position and area × share.
 @group(0) @binding(10) var<storage, read> member_points: array<vec4f>;
+// Per patch p and sub-cell c, at 16 p + c: the first of the sub-cell's
+// members (each patch's are sorted by sub-cell), the next entry its end
+// but for the last sub-cell, whose run ends at the patch's end.
+@group(0) @binding(11) var<storage, read> cell_starts: array<u32>;
+
+// The members of sub-cell `c` of patch `j`: (first, end) in `members`.
+fn cell_members(j: u32, c: u32) -> vec2<u32> {
+    let own = patches[j];
+    let at = j * SUB_CELL_COUNT + c;
+    return vec2<u32>(cell_starts[at], select(cell_starts[at + 1u], own.first + own.count, c + 1u == SUB_CELL_COUNT));
+}
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -73,8 +84,9 @@ var<workgroup> cell_centroid: array<vec3f, SUB_CELL_COUNT>;
 var<workgroup> cell_normal: array<vec3f, SUB_CELL_COUNT>;
 var<workgroup> own_sums: array<f32, SUB_CELL_COUNT>;
 
-// One workgroup per shooter slot, one invocation per sub-cell; run before
-// the shoot pass clears the shooters' unshot light.
+// One workgroup per shooter slot, one invocation per sub-cell, which reads
+// only its sub-cell's members; run before the shoot pass clears the
+// shooters' unshot light.
 @compute @workgroup_size(16)
 fn shooter_cells_of_batch(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) c: u32) {
     let k = group.x;
@@ -84,18 +96,16 @@ fn shooter_cells_of_batch(@builtin(workgroup_id) group: vec3<u32>, @builtin(loca
     var centroid = vec3f(0.0);
     var normal = vec3f(0.0);
     if (s.patch_index != NO_TRIANGLE) {
-        let own = patches[s.patch_index];
-        for (var m = 0u; m < own.count; m++) {
-            let i = members[own.first + m];
+        let run = cell_members(s.patch_index, c);
+        for (var m = run.x; m < run.y; m++) {
+            let i = members[m];
             let texel = texels[i];
-            if (sub_cell(texel, params) == c) {
-                // Light by the bouncing area, over the whole area: a sub-cell
-                // where two surfaces coincide has half the radiance of each.
-                power += unshot[i].rgb * texel.area * shares[i];
-                area += texel.area;
-                centroid += texel.position * texel.area;
-                normal += texel.normal * texel.area;
-            }
+            // Light by the bouncing area, over the whole area: a sub-cell
+            // where two surfaces coincide has half the radiance of each.
+            power += unshot[i].rgb * texel.area * shares[i];
+            area += texel.area;
+            centroid += texel.position * texel.area;
+            normal += texel.normal * texel.area;
         }
     }
     let base = k * SUB_CELL_ROWS * SUB_CELL_COUNT;
@@ -131,18 +141,18 @@ fn shooter_cells_of_batch(@builtin(workgroup_id) group: vec3<u32>, @builtin(loca
 // own (curved) patch, F_i the form factor of its other sub-cells' squares
 // to texel i, as the near field lights them (solve_shoot.wgsl's
 // `near_light`): the share of its light a patch gives itself where it is
-// concave, which the shoot pass's `finish` counts as covered. Left in the
-// first sub-cell's centroid's w.
+// concave, which the shoot pass's `finish` counts as covered. Invocation
+// `c` sums the texels of sub-cell `c`. Left in the first sub-cell's
+// centroid's w.
 fn own_share(s: Shooter, c: u32) -> f32 {
-    let own = patches[s.patch_index];
     var sum = 0.0;
-    for (var m = c; m < own.count; m += SUB_CELL_COUNT) {
-        let i = members[own.first + m];
+    let run = cell_members(s.patch_index, c);
+    for (var m = run.x; m < run.y; m++) {
+        let i = members[m];
         let texel = texels[i];
-        let mine = sub_cell(texel, params);
         var f = 0.0;
         for (var d = 0u; d < SUB_CELL_COUNT; d++) {
-            if (d != mine) {
+            if (d != c) {
                 f += square_form_factor(texel.position, texel.normal, cell_centroid[d], cell_normal[d], cell_area[d], s.half_u);
             }
         }

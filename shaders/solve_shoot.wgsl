@@ -31,8 +31,8 @@
 // form factors are exact, are not over-lit to make up for others.
 
 @group(0) @binding(0) var<uniform> params: BounceParams;
-@group(0) @binding(1) var<storage, read> texels: array<Texel>;
-@group(0) @binding(2) var<storage, read> texel_patch: array<u32>;
+// Every receiver texel, as four layers of records (`receiver`).
+@group(0) @binding(1) var receivers: texture_2d_array<u32>;
 // The batch's shooters and their light by sub-cells
 // (solve_patch_power.wgsl) are uniform buffers: a CPU driver gathers a
 // uniform array's elements for all lanes at once, where it reads a storage
@@ -55,10 +55,6 @@ struct ShooterCells {
 
 // Per slot: each sub-cell's unshot power and area, then their centroids.
 @group(0) @binding(11) var<uniform> shooter_cells: ShooterCells;
-// Per texel: the share of its area that bounces light (1 unless another
-// surface lies on or over it; src/solve/overlaps.rs). Where two surfaces
-// coincide, each receives the place's light but counts for half its area.
-@group(0) @binding(13) var<storage, read> shares: array<f32>;
 // Per patch: its slot + 1 when it shoots in this batch, else 0 (solve_select).
 @group(0) @binding(14) var<storage, read> chosen: array<u32>;
 // Per group of 64 texels (a workgroup of `main`): the slots that may light
@@ -73,6 +69,14 @@ struct SlotScales {
 }
 @group(1) @binding(0) var<uniform> slot_scales: SlotScales;
 @group(1) @binding(1) var<storage, read_write> slot_scales_out: array<f32, MAX_SHOOTERS>;
+
+// Receiver texel `i`. Its share of the area that bounces light is 1
+// unless another surface lies on or over it (src/solve/overlaps.rs): where
+// two surfaces coincide, each receives the place's light but counts for
+// half its area.
+fn receiver(i: u32) -> Receiver {
+    return load_receiver(receivers, i, params.receiver_row_shift);
+}
 
 fn slot_scale(k: u32) -> f32 {
     return slot_scales.items[k / 4u][k % 4u];
@@ -306,7 +310,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     // The texel's own patch, if it shoots now, gives it nothing here (its
     // unshot light leaves; a curved one lights itself where it is concave,
     // `near_light`).
-    let chosen_as = chosen[texel_patch[i]];
+    let r = receiver(i);
+    let chosen_as = chosen[r.patch_index];
     let shot = chosen_as != 0u;
     let own_slot = select(0u, chosen_as - 1u, shot);
     // Only the slots that may light the texel's group, in slot order.
@@ -317,7 +322,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         unshot[i].w = 0.0;
         return;
     }
-    let texel = texels[i];
+    let texel = r.texel;
     var gathered = vec3f(0.0);
     var near_slots = 0u;
     if (shot) {
@@ -342,7 +347,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if (shot) {
         remaining = vec3f(0.0);
     }
-    unshot[i] = vec4f(remaining + texel.albedo * gathered, luminance(gathered) * texel.area * shares[i]);
+    unshot[i] = vec4f(remaining + texel.albedo * gathered, luminance(gathered) * texel.area * r.share);
     if (near_slots != 0u) {
         near_list.entries[atomicAdd(&near_list.count, 1u)] = vec2<u32>(i, near_slots);
     }
@@ -399,7 +404,8 @@ fn near_field(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgro
     }
     let entry = near_list.entries[j];
     let i = entry.x;
-    let texel = texels[i];
+    let r = receiver(i);
+    let texel = r.texel;
     var gathered = vec3f(0.0);
     for (var slots = entry.y; slots != 0u; slots &= slots - 1u) {
         let k = firstTrailingBit(slots);
@@ -407,11 +413,11 @@ fn near_field(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgro
         // A texel of the shooter's own (curved) patch takes none from its
         // own sub-cell: flat at its scale, it gives next to none, and its
         // square would hover over the texel.
-        let skip = select(SUB_CELL_COUNT, sub_cell(texel, params), s.patch_index == texel_patch[i]);
+        let skip = select(SUB_CELL_COUNT, sub_cell(texel, params), s.patch_index == r.patch_index);
         gathered += near_light(texel, s, k, skip);
     }
     lightmap[i] += vec4f(gathered, 0.0);
-    unshot[i] += vec4f(texel.albedo * gathered, luminance(gathered) * texel.area * shares[i]);
+    unshot[i] += vec4f(texel.albedo * gathered, luminance(gathered) * texel.area * r.share);
 }
 
 var<workgroup> sums: array<f32, 64>;
@@ -480,9 +486,10 @@ fn measure(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
     let end = min(first + MEASURE_CHUNK, params.texel_count);
     for (var turn = 0u; first + lid + turn * 64u < end; turn++) {
         let i = first + lid + turn * 64u;
-        let texel = texels[i];
-        let own_patch = texel_patch[i];
-        let share = shares[i];
+        let r = receiver(i);
+        let texel = r.texel;
+        let own_patch = r.patch_index;
+        let share = r.share;
         var listed = 0u;
         for (var left = slots & group_shooters[i / 64u]; left != 0u; left &= left - 1u) {
             let k = firstTrailingBit(left);
@@ -503,9 +510,9 @@ fn measure(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
         }
     }
     for (var n = 0u; n < near_count; n++) {
-        let i = first + lid + near_turns[n] * 64u;
-        let texel = texels[i];
-        let share = shares[i];
+        let r = receiver(first + lid + near_turns[n] * 64u);
+        let texel = r.texel;
+        let share = r.share;
         for (var left = near_slots[n]; left != 0u; left &= left - 1u) {
             let k = firstTrailingBit(left);
             near[k - base] += near_form_factor(texel, shooters.items[k], k) * texel.area * share;

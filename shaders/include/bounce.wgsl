@@ -59,7 +59,35 @@ struct BounceParams {
     atlas_width: u32,      // texels per atlas row (a texel's index is x + y · width)
     cell: u32,             // side of the atlas cell patches are cut from, texels
     in_plane: f32,         // a receiver this close to a shooter's plane lies in it, metres (rounding)
-    _pad: u32,
+    receiver_row_shift: u32,  // receivers per row of the gather's receiver texture, as a shift
+}
+
+// A receiver texel as the gather reads it: its texel (position, area,
+// shading and face normals, atlas index and albedo; the rest left 0), the
+// share of its area that bounces light and its patch.
+struct Receiver {
+    texel: Texel,
+    share: f32,
+    patch_index: u32,
+}
+
+// Receiver `i` from the four layers of `records` (`shoot::receiver_records`),
+// 1 << `row_shift` receivers to a row. A CPU driver fetches texels several
+// times faster than it reads a storage buffer's elements.
+fn load_receiver(records: texture_2d_array<u32>, i: u32, row_shift: u32) -> Receiver {
+    let xy = vec2<u32>(i & ((1u << row_shift) - 1u), i >> row_shift);
+    let a = textureLoad(records, xy, 0, 0);
+    let b = textureLoad(records, xy, 1, 0);
+    let c = textureLoad(records, xy, 2, 0);
+    let d = textureLoad(records, xy, 3, 0);
+    var t: Texel;
+    t.position = bitcast<vec3f>(a.xyz);
+    t.area = bitcast<f32>(a.w);
+    t.normal = bitcast<vec3f>(b.xyz);
+    t.index = b.w;
+    t.face_normal = bitcast<vec3f>(c.xyz);
+    t.albedo = bitcast<vec3f>(d.xyz);
+    return Receiver(t, bitcast<f32>(c.w), d.w);
 }
 
 // A shooter patch is split into SUB_CELLS × SUB_CELLS parts of its atlas

@@ -476,18 +476,17 @@ pub fn uniform_entry(binding: u32, stages: wgpu::ShaderStages) -> wgpu::BindGrou
     }
 }
 
-/// A bind-group-layout entry for the material textures (a filterable 2-D array).
-pub fn texture_array_entry(binding: u32, stages: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: stages,
-        ty: wgpu::BindingType::Texture {
-            sample_type: wgpu::TextureSampleType::Float { filterable: true },
-            view_dimension: wgpu::TextureViewDimension::D2Array,
-            multisampled: false,
-        },
-        count: None,
-    }
+/// The material textures' sample type.
+pub const FILTERABLE: wgpu::TextureSampleType = wgpu::TextureSampleType::Float { filterable: true };
+
+/// A bind-group-layout entry for a 2-D array texture read by `sample_type`
+/// (the material textures: `FILTERABLE`).
+pub fn texture_array_entry(
+    binding: u32,
+    stages: wgpu::ShaderStages,
+    sample_type: wgpu::TextureSampleType,
+) -> wgpu::BindGroupLayoutEntry {
+    texture_entry(binding, stages, sample_type, wgpu::TextureViewDimension::D2Array)
 }
 
 /// A bind-group-layout entry for a depth texture read with `textureLoad`.

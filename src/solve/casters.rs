@@ -112,7 +112,7 @@ impl Casters {
         let fragment = wgpu::ShaderStages::FRAGMENT;
         [
             gpu::storage_entry(first, true, fragment),
-            gpu::texture_array_entry(first + 1, fragment),
+            gpu::texture_array_entry(first + 1, fragment, gpu::FILTERABLE),
             gpu::sampler_entry(first + 2, fragment),
         ]
     }

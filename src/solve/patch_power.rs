@@ -3,7 +3,14 @@
 //! pass ranks; and once the batch's shooters are chosen, their light by
 //! sub-cells of their patches for the near field (`shooter_cells_of_batch`).
 //! Both entry points share one bind group.
+//!
+//! Each patch's members are uploaded sorted by sub-cell, with where each
+//! sub-cell's run starts, so that an invocation of `shooter_cells_of_batch`
+//! reads only its own sub-cell's texels: a CPU driver reads a storage
+//! buffer lane by lane, and every lane reading every member was most of
+//! that pass.
 
+use super::patches::Patches;
 use super::resources::{Inputs, Resources};
 use crate::gpu::{self, Gpu, Shader};
 
@@ -22,8 +29,11 @@ impl PatchPower {
         let groups = r.dispatch.patch_groups;
         let params = gpu.uniform_buffer("solve_patch_power params", &r.params.with_row_stride(groups.0 * 64));
         let none = wgpu::BufferUsages::empty();
-        let members = gpu.storage_buffer("solve_patch_power members", &inputs.patches.members, none);
-        let member_points = gpu.storage_buffer("solve_patch_power member points", &member_points(inputs), none);
+        let cells = SubCellOrder::new(inputs.patches, inputs.texels.width);
+        let members = gpu.storage_buffer("solve_patch_power members", &cells.members, none);
+        let cell_starts = gpu.storage_buffer("solve_patch_power sub-cell starts", &cells.starts, none);
+        let points = member_points(inputs, &cells.members);
+        let member_points = gpu.storage_buffer("solve_patch_power member points", &points, none);
         let layout = bind_group_layout(gpu);
         let group = gpu::bind_buffers(
             gpu,
@@ -41,6 +51,7 @@ impl PatchPower {
                 &r.shooter_cells,
                 &r.shares,
                 &member_points,
+                &cell_starts,
             ],
         );
         PatchPower {
@@ -94,6 +105,8 @@ fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
             gpu::storage_entry(9, true, compute),
             // 10: each member's position and bouncing area
             gpu::storage_entry(10, true, compute),
+            // 11: where each patch's sub-cells start among its members
+            gpu::storage_entry(11, true, compute),
         ],
     })
 }
@@ -101,10 +114,91 @@ fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
 /// The patch members' texels' positions and bouncing areas in the members'
 /// order, so that the power pass, run every batch, reads them in order
 /// rather than whole texels by index.
-fn member_points(inputs: &Inputs) -> Vec<[f32; 4]> {
-    let points = inputs.patches.members.iter().map(|&i| {
+fn member_points(inputs: &Inputs, members: &[u32]) -> Vec<[f32; 4]> {
+    let points = members.iter().map(|&i| {
         let t = &inputs.texels.texels[i as usize];
         [t.position[0], t.position[1], t.position[2], t.area * inputs.shares[i as usize]]
     });
     points.collect()
+}
+
+/// Sub-cells to a side of a patch's atlas cell (`SUB_CELLS` in include/bounce.wgsl).
+const SUB_CELLS: u32 = 4;
+
+/// The members of every patch, each patch's sorted by sub-cell (in place:
+/// a patch keeps its `first` and `count`), and where each sub-cell's run
+/// starts: `starts[16 p + c]`, the last one's run ending at the patch's end.
+/// One more entry closes the array, so that the shader may read one past a
+/// patch's last start.
+struct SubCellOrder {
+    members: Vec<u32>,
+    starts: Vec<u32>,
+}
+
+impl SubCellOrder {
+    fn new(patches: &Patches, atlas_width: u32) -> SubCellOrder {
+        let cell_of = |i: &u32| sub_cell(*i, atlas_width, patches.cell);
+        let mut members = patches.members.clone();
+        let mut starts = Vec::with_capacity(patches.patches.len() * (SUB_CELLS * SUB_CELLS) as usize + 1);
+        for p in &patches.patches {
+            let run = &mut members[p.first as usize..(p.first + p.count) as usize];
+            run.sort_by_key(cell_of);
+            for c in 0..SUB_CELLS * SUB_CELLS {
+                starts.push(p.first + run.partition_point(|i| cell_of(i) < c) as u32);
+            }
+        }
+        starts.push(members.len() as u32);
+        SubCellOrder { members, starts }
+    }
+}
+
+/// The sub-cell of its patch that atlas texel `index` lies in, as
+/// `sub_cell` in include/bounce.wgsl: its place in its `cell`-wide atlas
+/// cell, SUB_CELLS to a side.
+fn sub_cell(index: u32, atlas_width: u32, cell: u32) -> u32 {
+    let (x, y) = (index % atlas_width % cell, index / atlas_width % cell);
+    y * SUB_CELLS / cell * SUB_CELLS + x * SUB_CELLS / cell
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::solve::patches::Patch;
+
+    #[test]
+    fn a_texel_s_sub_cell_is_its_quarter_of_its_cell_across_and_down() {
+        // 8-texel cells in a 32-wide atlas: texel (13, 10) is at (5, 2) in its cell.
+        assert_eq!(sub_cell(10 * 32 + 13, 32, 8), 4 + 2);
+        assert_eq!(sub_cell(0, 32, 8), 0);
+        assert_eq!(sub_cell(7 * 32 + 7, 32, 8), 15);
+        // A cell narrower than four sub-cells leaves some empty.
+        assert_eq!(sub_cell(32 + 1, 32, 2), 2 * 4 + 2);
+    }
+
+    #[test]
+    fn members_are_sorted_by_sub_cell_within_their_patch_and_each_run_starts_where_it_says() {
+        // Two patches of a 4-wide atlas cut into 4-texel cells: the first
+        // holds texels of both rows in a jumbled order, the second one texel.
+        let members = vec![5, 0, 4, 1, 7, 3];
+        let patches = Patches {
+            patches: vec![Patch { first: 0, count: 5, ..Default::default() }, Patch { first: 5, count: 1, ..Default::default() }],
+            members,
+            texel_patch: Vec::new(),
+            cell: 4,
+        };
+        let order = SubCellOrder::new(&patches, 4);
+        // Sub-cells: 0 → 0, 1 → 1, 3 → 3, 4 → 4, 5 → 5, 7 → 7 (each texel its own).
+        assert_eq!(order.members, [0, 1, 4, 5, 7, 3]);
+        let first: Vec<u32> = order.starts[..16].to_vec();
+        assert_eq!(first, [0, 1, 2, 2, 2, 3, 4, 4, 5, 5, 5, 5, 5, 5, 5, 5]);
+        // The second patch's one texel is in sub-cell 3; the array is closed by the total.
+        assert_eq!(order.starts[16..], [5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6]);
+        for p in 0..2 {
+            for c in 0..16u32 {
+                let (start, end) = (order.starts[16 * p + c as usize], order.starts[16 * p + c as usize + 1]);
+                let end = if c == 15 { patches.patches[p].first + patches.patches[p].count } else { end };
+                assert!(order.members[start as usize..end as usize].iter().all(|&i| sub_cell(i, 4, 4) == c));
+            }
+        }
+    }
 }

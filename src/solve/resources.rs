@@ -9,7 +9,7 @@ use super::bounce::{BounceOptions, MAX_SHOOTERS};
 use super::hemicube::HemicubeFace;
 use super::patches::Patches;
 use super::select::Shooter;
-use super::shoot::MEASURE_CHUNK;
+use super::shoot::{self, MEASURE_CHUNK};
 use super::shooter_cull;
 use crate::gpu::Gpu;
 use crate::scene::Scene;
@@ -41,7 +41,8 @@ pub(super) struct BounceParams {
     /// A receiver this close to a shooter's plane lies in it, metres: twice
     /// the rounding `shooter_cull` allows for.
     in_plane: f32,
-    _pad: u32,
+    /// Receivers a row of the gather's receiver texture holds, as a shift.
+    pub(super) receiver_row_shift: u32,
 }
 
 impl BounceParams {
@@ -96,7 +97,7 @@ pub(super) fn params(
         atlas_width: texels.width,
         cell: patches.cell,
         in_plane: shooter_cull::in_plane(&texels.texels),
-        _pad: 0,
+        receiver_row_shift: shoot::receiver_row_shift(texels.texels.len() as u32, gpu.limits.max_texture_dimension_2d),
     };
     (params, Dispatch { shooter_count, face, tiles_per_row, tile_rows, groups, patch_groups })
 }
@@ -226,6 +227,7 @@ mod tests {
                 atlas_width,
                 cell,
                 in_plane,
+                receiver_row_shift,
             }
         );
     }

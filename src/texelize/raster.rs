@@ -255,7 +255,7 @@ fn interpolate(
             // 8: triangle corners in lightmap texels (for the texture footprint)
             gpu::storage_entry(8, true, compute),
             // 9, 10: material textures and their sampler
-            gpu::texture_array_entry(9, compute),
+            gpu::texture_array_entry(9, compute, gpu::FILTERABLE),
             gpu::sampler_entry(10, compute),
         ],
     });

@@ -148,7 +148,7 @@ impl GpuScene {
             // 2: the materials (their alpha cut-outs)
             crate::gpu::storage_entry(2, true, compute),
             // 3, 4: the material textures and their sampler
-            crate::gpu::texture_array_entry(3, compute),
+            crate::gpu::texture_array_entry(3, compute, crate::gpu::FILTERABLE),
             crate::gpu::sampler_entry(4, compute),
         ];
         gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
