@@ -5,7 +5,8 @@
 // each shooter's light by parts of its patch, for the near field.
 
 @group(0) @binding(0) var<uniform> params: BounceParams;
-@group(0) @binding(1) var<storage, read> texels: array<Texel>;
+// Every receiver texel, as four layers of records (`load_receiver`).
+@group(0) @binding(1) var receivers: texture_2d_array<u32>;
 @group(0) @binding(2) var<storage, read> patches: array<Patch>;
 @group(0) @binding(3) var<storage, read> members: array<u32>;
 // Per texel: rgb = unshot radiance ΔL, w = luminance·area received in the last shoot.
@@ -28,15 +29,16 @@
 // patch, integrated part by part. The first centroid's w is the share of
 // its light such a patch gives itself (`own_share`).
 @group(0) @binding(8) var<storage, read_write> shooter_cells: array<vec4f>;
-// Per texel: the share of its area that bounces light (src/solve/overlaps.rs):
-// its unshot light counts for that share of its area.
-@group(0) @binding(9) var<storage, read> shares: array<f32>;
-// Per member (`members`' order): its texel's position and area × share.
-@group(0) @binding(10) var<storage, read> member_points: array<vec4f>;
 // Per patch p and sub-cell c, at 16 p + c: the first of the sub-cell's
 // members (each patch's are sorted by sub-cell), the next entry its end
 // but for the last sub-cell, whose run ends at the patch's end.
-@group(0) @binding(11) var<storage, read> cell_starts: array<u32>;
+@group(0) @binding(9) var<storage, read> cell_starts: array<u32>;
+
+// Receiver texel `i`, with the share of its area that bounces light
+// (src/solve/overlaps.rs): its unshot light counts for that share of its area.
+fn receiver(i: u32) -> Receiver {
+    return load_receiver(receivers, i, params.receiver_row_shift);
+}
 
 // The members of sub-cell `c` of patch `j`: (first, end) in `members`.
 fn cell_members(j: u32, c: u32) -> vec2<u32> {
@@ -57,12 +59,14 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     var weighted = vec3f(0.0);
     var weight = 0.0;
     for (var m = own.first; m < own.first + own.count; m++) {
-        let u = unshot[members[m]];
-        let point = member_points[m];
-        power += u.rgb * point.w;
+        let i = members[m];
+        let u = unshot[i];
+        let r = receiver(i);
+        let area = r.texel.area * r.share;
+        power += u.rgb * area;
         received += u.w;
-        let w = luminance(u.rgb) * point.w;
-        weighted += w * point.xyz;
+        let w = luminance(u.rgb) * area;
+        weighted += w * r.texel.position;
         weight += w;
     }
     patch_power[j] = vec4f(power, received);
@@ -99,10 +103,11 @@ fn shooter_cells_of_batch(@builtin(workgroup_id) group: vec3<u32>, @builtin(loca
         let run = cell_members(s.patch_index, c);
         for (var m = run.x; m < run.y; m++) {
             let i = members[m];
-            let texel = texels[i];
+            let r = receiver(i);
+            let texel = r.texel;
             // Light by the bouncing area, over the whole area: a sub-cell
             // where two surfaces coincide has half the radiance of each.
-            power += unshot[i].rgb * texel.area * shares[i];
+            power += unshot[i].rgb * texel.area * r.share;
             area += texel.area;
             centroid += texel.position * texel.area;
             normal += texel.normal * texel.area;
@@ -148,15 +153,15 @@ fn own_share(s: Shooter, c: u32) -> f32 {
     var sum = 0.0;
     let run = cell_members(s.patch_index, c);
     for (var m = run.x; m < run.y; m++) {
-        let i = members[m];
-        let texel = texels[i];
+        let r = receiver(members[m]);
+        let texel = r.texel;
         var f = 0.0;
         for (var d = 0u; d < SUB_CELL_COUNT; d++) {
             if (d != c) {
                 f += square_form_factor(texel.position, texel.normal, cell_centroid[d], cell_normal[d], cell_area[d], s.half_u);
             }
         }
-        sum += f * texel.area * shares[i];
+        sum += f * texel.area * r.share;
     }
     return sum / max(s.area, 1e-30);
 }

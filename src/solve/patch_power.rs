@@ -32,28 +32,28 @@ impl PatchPower {
         let cells = SubCellOrder::new(inputs.patches, inputs.texels.width);
         let members = gpu.storage_buffer("solve_patch_power members", &cells.members, none);
         let cell_starts = gpu.storage_buffer("solve_patch_power sub-cell starts", &cells.starts, none);
-        let points = member_points(inputs, &cells.members);
-        let member_points = gpu.storage_buffer("solve_patch_power member points", &points, none);
         let layout = bind_group_layout(gpu);
-        let group = gpu::bind_buffers(
-            gpu,
-            "solve_patch_power",
-            &layout,
-            &[
-                &params,
-                &r.texels,
-                &r.patches,
-                &members,
-                &r.unshot,
-                &r.patch_power,
-                &r.patch_origin,
-                &r.shooters,
-                &r.shooter_cells,
-                &r.shares,
-                &member_points,
-                &cell_starts,
-            ],
-        );
+        let buffers = [
+            (0, &params),
+            (2, &r.patches),
+            (3, &members),
+            (4, &r.unshot),
+            (5, &r.patch_power),
+            (6, &r.patch_origin),
+            (7, &r.shooters),
+            (8, &r.shooter_cells),
+            (9, &cell_starts),
+        ];
+        let mut entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .map(|&(binding, buffer)| wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() })
+            .collect();
+        entries.push(wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&r.receivers) });
+        let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("solve_patch_power"),
+            layout: &layout,
+            entries: &entries,
+        });
         PatchPower {
             power: gpu.compute_pipeline(Shader::SolvePatchPower, "main", &[&layout]),
             shooter_cells: gpu.compute_pipeline(Shader::SolvePatchPower, "shooter_cells_of_batch", &[&layout]),
@@ -85,8 +85,8 @@ fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
         entries: &[
             // 0: BounceParams (patch count, dispatch stride)
             gpu::uniform_entry(0, compute),
-            // 1: texels (areas)
-            gpu::storage_entry(1, true, compute),
+            // 1: the receivers' records (`resources::receiver_records`)
+            gpu::texture_array_entry(1, compute, wgpu::TextureSampleType::Uint),
             // 2: patches
             gpu::storage_entry(2, true, compute),
             // 3: patch members
@@ -101,25 +101,10 @@ fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
             gpu::uniform_entry(7, compute),
             // 8: their light by sub-cells (written)
             gpu::storage_entry(8, false, compute),
-            // 9: each texel's share of the area that bounces
+            // 9: where each patch's sub-cells start among its members
             gpu::storage_entry(9, true, compute),
-            // 10: each member's position and bouncing area
-            gpu::storage_entry(10, true, compute),
-            // 11: where each patch's sub-cells start among its members
-            gpu::storage_entry(11, true, compute),
         ],
     })
-}
-
-/// The patch members' texels' positions and bouncing areas in the members'
-/// order, so that the power pass, run every batch, reads them in order
-/// rather than whole texels by index.
-fn member_points(inputs: &Inputs, members: &[u32]) -> Vec<[f32; 4]> {
-    let points = members.iter().map(|&i| {
-        let t = &inputs.texels.texels[i as usize];
-        [t.position[0], t.position[1], t.position[2], t.area * inputs.shares[i as usize]]
-    });
-    points.collect()
 }
 
 /// Sub-cells to a side of a patch's atlas cell (`SUB_CELLS` in include/bounce.wgsl).

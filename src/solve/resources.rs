@@ -9,7 +9,7 @@ use super::bounce::{BounceOptions, MAX_SHOOTERS};
 use super::hemicube::HemicubeFace;
 use super::patches::Patches;
 use super::select::Shooter;
-use super::shoot::{self, MEASURE_CHUNK};
+use super::shoot::MEASURE_CHUNK;
 use super::shooter_cull;
 use crate::gpu::Gpu;
 use crate::scene::Scene;
@@ -97,7 +97,7 @@ pub(super) fn params(
         atlas_width: texels.width,
         cell: patches.cell,
         in_plane: shooter_cull::in_plane(&texels.texels),
-        receiver_row_shift: shoot::receiver_row_shift(texels.texels.len() as u32, gpu.limits.max_texture_dimension_2d),
+        receiver_row_shift: receiver_row_shift(texels.texels.len() as u32, gpu.limits.max_texture_dimension_2d),
     };
     (params, Dispatch { shooter_count, face, tiles_per_row, tile_rows, groups, patch_groups })
 }
@@ -136,9 +136,8 @@ pub(super) struct Resources {
     pub(super) dispatch: Dispatch,
     /// `params` as a uniform buffer.
     pub(super) params_buffer: wgpu::Buffer,
-    pub(super) texels: wgpu::Buffer,
-    /// Per texel: the share of its area that bounces light (`overlaps`).
-    pub(super) shares: wgpu::Buffer,
+    /// Every receiver texel as four records (`receiver_records`).
+    pub(super) receivers: wgpu::TextureView,
     pub(super) patches: wgpu::Buffer,
     /// Per texel: unshot radiance ΔL (read by the power pass, spent by the gather).
     pub(super) unshot: wgpu::Buffer,
@@ -162,7 +161,7 @@ pub(super) struct Resources {
 
 impl Resources {
     pub(super) fn new(gpu: &Gpu, inputs: &Inputs, params: BounceParams, dispatch: Dispatch) -> Resources {
-        let Inputs { texels, shares, patches, unshot, lightmap, .. } = *inputs;
+        let Inputs { patches, unshot, lightmap, .. } = *inputs;
         let Dispatch { face, tiles_per_row, tile_rows, .. } = dispatch;
         let none = wgpu::BufferUsages::empty();
         let depth = gpu.depth_target("solve_hemicube depth", 3 * face * tiles_per_row, face * tile_rows);
@@ -172,8 +171,7 @@ impl Resources {
             params,
             dispatch,
             params_buffer: gpu.uniform_buffer("solve_shoot params", &params),
-            texels: gpu.storage_buffer("solve_shoot texels", &texels.texels, none),
-            shares: gpu.storage_buffer("solve_shoot shares", shares, none),
+            receivers: receiver_texture(gpu, inputs, params.receiver_row_shift).create_view(&Default::default()),
             patches: gpu.storage_buffer("solve_select patches", &patches.patches, none),
             unshot: gpu.storage_buffer("solve_shoot unshot", unshot, wgpu::BufferUsages::COPY_SRC),
             lightmap: gpu.storage_buffer("solve_shoot lightmap", &lightmap4, wgpu::BufferUsages::COPY_SRC),
@@ -199,6 +197,62 @@ impl Resources {
             depth_view: depth.create_view(&Default::default()),
         }
     }
+}
+
+/// Receivers a row of the receiver texture holds at least: 1 << this.
+const MIN_ROW_SHIFT: u32 = 12;
+
+/// The row width of the receiver texture, as a shift: the narrowest power of
+/// two from 4,096 whose rows for `count` receivers fit in `max_dimension`.
+fn receiver_row_shift(count: u32, max_dimension: u32) -> u32 {
+    let mut shift = MIN_ROW_SHIFT;
+    while (count >> shift) >= max_dimension && (2u64 << shift) <= max_dimension as u64 {
+        shift += 1;
+    }
+    shift
+}
+
+/// Every receiver texel as the gather reads it (`load_receiver` in
+/// include/bounce.wgsl): four layers of 4-word records, receiver i at
+/// (i mod width, i / width) of each, width = 1 << `row_shift`: its position
+/// and area, shading normal and atlas index, face normal and share of the
+/// bouncing area, albedo and patch. A CPU driver fetches texels several
+/// times faster than it reads a storage buffer's elements, and the gather
+/// reads every receiver every batch.
+fn receiver_records(inputs: &Inputs, row_shift: u32) -> Vec<[u32; 4]> {
+    let texels = &inputs.texels.texels;
+    let width = 1usize << row_shift;
+    let layer = texels.len().div_ceil(width).max(1) * width;
+    let mut records = vec![[0u32; 4]; 4 * layer];
+    let bits = |v: [f32; 3], w: u32| [v[0].to_bits(), v[1].to_bits(), v[2].to_bits(), w];
+    for (i, t) in texels.iter().enumerate() {
+        records[i] = bits(t.position, t.area.to_bits());
+        records[layer + i] = bits(t.normal, t.index);
+        records[2 * layer + i] = bits(t.face_normal, inputs.shares[i].to_bits());
+        records[3 * layer + i] = bits(t.albedo, inputs.patches.texel_patch[i]);
+    }
+    records
+}
+
+fn receiver_texture(gpu: &Gpu, inputs: &Inputs, row_shift: u32) -> wgpu::Texture {
+    use wgpu::util::DeviceExt;
+    let records = receiver_records(inputs, row_shift);
+    let width = 1u32 << row_shift;
+    gpu.device.create_texture_with_data(
+        &gpu.queue,
+        &wgpu::TextureDescriptor {
+            label: Some("solve_shoot receivers"),
+            size: wgpu::Extent3d { width, height: records.len() as u32 / (4 * width), depth_or_array_layers: 4 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba32Uint,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        },
+        wgpu::util::TextureDataOrder::LayerMajor,
+        bytemuck::cast_slice(&records),
+    )
 }
 
 #[cfg(test)]

@@ -45,8 +45,6 @@ pub(super) struct Shoot {
 
 /// The buffers only the gather binds.
 struct Buffers {
-    /// Every receiver texel as four records (`receiver_records`).
-    receivers: wgpu::TextureView,
     /// Per patch: the scale of its form factors, 0 until it first shoots.
     patch_scale: wgpu::Buffer,
     /// The batch's shooters' scales by slot (written by `finish`), which
@@ -59,10 +57,9 @@ struct Buffers {
 }
 
 impl Buffers {
-    fn new(gpu: &Gpu, inputs: &Inputs, chunk_count: u32, row_shift: u32) -> Buffers {
+    fn new(gpu: &Gpu, inputs: &Inputs, chunk_count: u32) -> Buffers {
         let (none, patch_count) = (wgpu::BufferUsages::empty(), inputs.patches.patches.len());
         Buffers {
-            receivers: receiver_texture(gpu, inputs, row_shift).create_view(&Default::default()),
             patch_scale: gpu.zeroed_storage_buffer::<f32>(
                 "solve_shoot patch scales",
                 patch_count,
@@ -102,7 +99,7 @@ impl Shoot {
         group_shooters: &wgpu::Buffer,
         normalized: bool,
     ) -> Shoot {
-        let b = Buffers::new(gpu, inputs, r.params.chunk_count, r.params.receiver_row_shift);
+        let b = Buffers::new(gpu, inputs, r.params.chunk_count);
         if !normalized {
             // Every patch's scale known (1): the measure and finish passes skip.
             let ones = vec![1f32; inputs.patches.patches.len().max(1)];
@@ -177,7 +174,7 @@ fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
         entries: &[
             // 0: BounceParams
             gpu::uniform_entry(0, compute),
-            // 1: the receivers' records (`receiver_records`)
+            // 1: the receivers' records (`resources::receiver_records`)
             gpu::texture_array_entry(1, compute, wgpu::TextureSampleType::Uint),
             // 3: the batch's shooters
             gpu::uniform_entry(3, compute),
@@ -218,7 +215,7 @@ fn bind_group(
         layout,
         entries: &[
             buffer(0, &r.params_buffer),
-            wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&b.receivers) },
+            wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&r.receivers) },
             buffer(3, &r.shooters),
             buffer(4, &r.lightmap),
             buffer(5, &r.unshot),
@@ -231,62 +228,6 @@ fn bind_group(
             buffer(15, group_shooters),
         ],
     })
-}
-
-/// Receivers a row of the receiver texture holds at least: 1 << this.
-const MIN_ROW_SHIFT: u32 = 12;
-
-/// The row width of the receiver texture, as a shift: the narrowest power of
-/// two from 4,096 whose rows for `count` receivers fit in `max_dimension`.
-pub(super) fn receiver_row_shift(count: u32, max_dimension: u32) -> u32 {
-    let mut shift = MIN_ROW_SHIFT;
-    while (count >> shift) >= max_dimension && (2u64 << shift) <= max_dimension as u64 {
-        shift += 1;
-    }
-    shift
-}
-
-/// Every receiver texel as the gather reads it (`load_receiver` in
-/// include/bounce.wgsl): four layers of 4-word records, receiver i at
-/// (i mod width, i / width) of each, width = 1 << `row_shift`: its position
-/// and area, shading normal and atlas index, face normal and share of the
-/// bouncing area, albedo and patch. A CPU driver fetches texels several
-/// times faster than it reads a storage buffer's elements, and the gather
-/// reads every receiver every batch.
-fn receiver_records(inputs: &Inputs, row_shift: u32) -> Vec<[u32; 4]> {
-    let texels = &inputs.texels.texels;
-    let width = 1usize << row_shift;
-    let layer = texels.len().div_ceil(width).max(1) * width;
-    let mut records = vec![[0u32; 4]; 4 * layer];
-    let bits = |v: [f32; 3], w: u32| [v[0].to_bits(), v[1].to_bits(), v[2].to_bits(), w];
-    for (i, t) in texels.iter().enumerate() {
-        records[i] = bits(t.position, t.area.to_bits());
-        records[layer + i] = bits(t.normal, t.index);
-        records[2 * layer + i] = bits(t.face_normal, inputs.shares[i].to_bits());
-        records[3 * layer + i] = bits(t.albedo, inputs.patches.texel_patch[i]);
-    }
-    records
-}
-
-fn receiver_texture(gpu: &Gpu, inputs: &Inputs, row_shift: u32) -> wgpu::Texture {
-    use wgpu::util::DeviceExt;
-    let records = receiver_records(inputs, row_shift);
-    let width = 1u32 << row_shift;
-    gpu.device.create_texture_with_data(
-        &gpu.queue,
-        &wgpu::TextureDescriptor {
-            label: Some("solve_shoot receivers"),
-            size: wgpu::Extent3d { width, height: records.len() as u32 / (4 * width), depth_or_array_layers: 4 },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba32Uint,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        },
-        wgpu::util::TextureDataOrder::LayerMajor,
-        bytemuck::cast_slice(&records),
-    )
 }
 
 /// The slots' form-factor scales: written by `finish`, read by `main` as a
