@@ -57,9 +57,13 @@ struct ShooterCells {
 @group(0) @binding(11) var<uniform> shooter_cells: ShooterCells;
 // Per patch: its slot + 1 when it shoots in this batch, else 0 (solve_select).
 @group(0) @binding(14) var<storage, read> chosen: array<u32>;
-// Per group of 64 texels (a workgroup of `main`): the slots that may light
-// one of them, a bit each (solve_shooter_cull).
+// Per group of 64 receivers in `members`' order (a workgroup of `main`):
+// the slots that may light one of them, a bit each (solve_shooter_cull).
 @group(0) @binding(15) var<storage, read> group_shooters: array<u32>;
+// The receivers in the order `main` and `measure` take them: by patch,
+// so that a group of 64 lies in one or two atlas cells, whose bounds
+// leave out more shooters than a run along an atlas row.
+@group(0) @binding(16) var<storage, read> members: array<u32>;
 
 // The batch's shooters' scales by slot, as `finish` leaves them: read by
 // `main` as a uniform buffer, for the reason the shooters are one, and
@@ -303,10 +307,11 @@ fn sub_cell_form_factor(texel: Texel, s: Shooter, k: u32, c: u32) -> f32 {
 // near each shooter, would otherwise cost every texel-shooter pair.
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
-    let i = id.x + id.y * params.row_stride;
-    if (i >= params.texel_count) {
+    let j = id.x + id.y * params.row_stride;
+    if (j >= params.texel_count) {
         return;
     }
+    let i = members[j];
     // The texel's own patch, if it shoots now, gives it nothing here (its
     // unshot light leaves; a curved one lights itself where it is concave,
     // `near_light`).
@@ -315,7 +320,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let shot = chosen_as != 0u;
     let own_slot = select(0u, chosen_as - 1u, shot);
     // Only the slots that may light the texel's group, in slot order.
-    var slots = group_shooters[i / 64u];
+    var slots = group_shooters[j / 64u];
     if (slots == 0u && !shot) {
         // Nothing reaches it and it keeps its light: only the record of
         // what it received is cleared, and the texel is never read.
@@ -485,13 +490,13 @@ fn measure(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
     let first = group.x * MEASURE_CHUNK;
     let end = min(first + MEASURE_CHUNK, params.texel_count);
     for (var turn = 0u; first + lid + turn * 64u < end; turn++) {
-        let i = first + lid + turn * 64u;
-        let r = receiver(i);
+        let j = first + lid + turn * 64u;
+        let r = receiver(members[j]);
         let texel = r.texel;
         let own_patch = r.patch_index;
         let share = r.share;
         var listed = 0u;
-        for (var left = slots & group_shooters[i / 64u]; left != 0u; left &= left - 1u) {
+        for (var left = slots & group_shooters[j / 64u]; left != 0u; left &= left - 1u) {
             let k = firstTrailingBit(left);
             let s = shooters.items[k];
             if (own_patch != s.patch_index) {
@@ -510,7 +515,7 @@ fn measure(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
         }
     }
     for (var n = 0u; n < near_count; n++) {
-        let r = receiver(first + lid + near_turns[n] * 64u);
+        let r = receiver(members[first + lid + near_turns[n] * 64u]);
         let texel = r.texel;
         let share = r.share;
         for (var left = near_slots[n]; left != 0u; left &= left - 1u) {

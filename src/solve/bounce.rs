@@ -52,7 +52,7 @@ use serde::{Deserialize, Serialize};
 
 use super::hemicube::Hemicube;
 use super::hemicube_cull::HemicubeCull;
-use super::patch_power::PatchPower;
+use super::patch_power::{PatchPower, SubCellOrder};
 use super::patches::Patches;
 use super::resources::{self, BounceParams, Dispatch, Inputs, Resources};
 use super::select::{GpuStats, Select};
@@ -239,8 +239,16 @@ pub fn run(
     let sums = Sums::new(texels, lightmap, coverage);
     let (params, dispatch) = resources::params(gpu, scene, texels, patches, texels_per_unit, options);
     let patch_coverage = patch_coverage(texels, patches, coverage);
-    let inputs =
-        Inputs { texels: gpu_texels, shares, patches, patch_coverage: &patch_coverage, unshot: &sums.unshot, lightmap };
+    let order = SubCellOrder::new(patches, texels.width);
+    let inputs = Inputs {
+        texels: gpu_texels,
+        shares,
+        patches,
+        order: &order,
+        patch_coverage: &patch_coverage,
+        unshot: &sums.unshot,
+        lightmap,
+    };
     // Without a direct pass (emitters only) the share is unknown: normalize.
     let normalized = sums.initial_closure.is_none_or(|f| f * luminance(sums.mean_albedo) >= NORMALIZE_FROM);
     let passes = Passes::new(gpu, scene, &inputs, params, dispatch, options.face_list_bytes, normalized);
@@ -465,11 +473,12 @@ impl Passes {
     ) -> Passes {
         let resources = Resources::new(gpu, inputs, params, dispatch);
         let hemicube = Hemicube::new(gpu, scene, &resources);
-        let shooter_cull = ShooterCull::new(gpu, &inputs.texels.texels, params, &resources.shooters);
+        let in_order: Vec<Texel> = inputs.order.members.iter().map(|&i| inputs.texels.texels[i as usize]).collect();
+        let shooter_cull = ShooterCull::new(gpu, &in_order, params, &resources.shooters);
         let (casters, faces) = (&hemicube.casters, &resources.hemicube_faces);
         let cull = HemicubeCull::new(gpu, casters, faces, 5 * dispatch.shooter_count, params.near, face_list_bytes);
         Passes {
-            power: PatchPower::new(gpu, &resources, inputs),
+            power: PatchPower::new(gpu, &resources, inputs.order),
             select: Select::new(gpu, &resources, inputs),
             shoot: Shoot::new(gpu, &resources, inputs, &shooter_cull.group_shooters, normalized),
             cull,

@@ -11,7 +11,7 @@
 //! that pass.
 
 use super::patches::Patches;
-use super::resources::{Inputs, Resources};
+use super::resources::Resources;
 use crate::gpu::{self, Gpu, Shader};
 
 pub(super) struct PatchPower {
@@ -25,18 +25,16 @@ pub(super) struct PatchPower {
 }
 
 impl PatchPower {
-    pub(super) fn new(gpu: &Gpu, r: &Resources, inputs: &Inputs) -> PatchPower {
+    pub(super) fn new(gpu: &Gpu, r: &Resources, order: &SubCellOrder) -> PatchPower {
         let groups = r.dispatch.patch_groups;
         let params = gpu.uniform_buffer("solve_patch_power params", &r.params.with_row_stride(groups.0 * 64));
         let none = wgpu::BufferUsages::empty();
-        let cells = SubCellOrder::new(inputs.patches, inputs.texels.width);
-        let members = gpu.storage_buffer("solve_patch_power members", &cells.members, none);
-        let cell_starts = gpu.storage_buffer("solve_patch_power sub-cell starts", &cells.starts, none);
+        let cell_starts = gpu.storage_buffer("solve_patch_power sub-cell starts", &order.starts, none);
         let layout = bind_group_layout(gpu);
         let buffers = [
             (0, &params),
             (2, &r.patches),
-            (3, &members),
+            (3, &r.members),
             (4, &r.unshot),
             (5, &r.patch_power),
             (6, &r.patch_origin),
@@ -115,13 +113,13 @@ const SUB_CELLS: u32 = 4;
 /// starts: `starts[16 p + c]`, the last one's run ending at the patch's end.
 /// One more entry closes the array, so that the shader may read one past a
 /// patch's last start.
-struct SubCellOrder {
-    members: Vec<u32>,
+pub(super) struct SubCellOrder {
+    pub(super) members: Vec<u32>,
     starts: Vec<u32>,
 }
 
 impl SubCellOrder {
-    fn new(patches: &Patches, atlas_width: u32) -> SubCellOrder {
+    pub(super) fn new(patches: &Patches, atlas_width: u32) -> SubCellOrder {
         let cell_of = |i: &u32| sub_cell(*i, atlas_width, patches.cell);
         let mut members = patches.members.clone();
         let mut starts = Vec::with_capacity(patches.patches.len() * (SUB_CELLS * SUB_CELLS) as usize + 1);

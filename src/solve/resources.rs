@@ -7,6 +7,7 @@ use glam::Vec3;
 
 use super::bounce::{BounceOptions, MAX_SHOOTERS};
 use super::hemicube::HemicubeFace;
+use super::patch_power::SubCellOrder;
 use super::patches::Patches;
 use super::select::Shooter;
 use super::shoot::MEASURE_CHUNK;
@@ -123,6 +124,9 @@ pub(super) struct Inputs<'a> {
     /// Per texel: the share of its area that bounces (`overlaps`).
     pub(super) shares: &'a [f32],
     pub(super) patches: &'a Patches,
+    /// The patches' members, each patch's sorted by sub-cell: the order the
+    /// gather takes the receivers in.
+    pub(super) order: &'a SubCellOrder,
     /// Per patch: the covered share of its texels' hemispheres.
     pub(super) patch_coverage: &'a [f32],
     pub(super) unshot: &'a [[f32; 4]],
@@ -138,6 +142,10 @@ pub(super) struct Resources {
     pub(super) params_buffer: wgpu::Buffer,
     /// Every receiver texel as four records (`receiver_records`).
     pub(super) receivers: wgpu::TextureView,
+    /// `Inputs::order`'s members: the texels by patch, and the gather's
+    /// order, in which a group of 64 receivers lies in one or two atlas
+    /// cells rather than along a row of the atlas.
+    pub(super) members: wgpu::Buffer,
     pub(super) patches: wgpu::Buffer,
     /// Per texel: unshot radiance ΔL (read by the power pass, spent by the gather).
     pub(super) unshot: wgpu::Buffer,
@@ -172,6 +180,7 @@ impl Resources {
             dispatch,
             params_buffer: gpu.uniform_buffer("solve_shoot params", &params),
             receivers: receiver_texture(gpu, inputs, params.receiver_row_shift).create_view(&Default::default()),
+            members: gpu.storage_buffer("solve_patch_power members", &inputs.order.members, none),
             patches: gpu.storage_buffer("solve_select patches", &patches.patches, none),
             unshot: gpu.storage_buffer("solve_shoot unshot", unshot, wgpu::BufferUsages::COPY_SRC),
             lightmap: gpu.storage_buffer("solve_shoot lightmap", &lightmap4, wgpu::BufferUsages::COPY_SRC),

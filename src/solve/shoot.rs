@@ -196,6 +196,8 @@ fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
             gpu::storage_entry(14, true, compute),
             // 15: each texel group's slots (solve_shooter_cull)
             gpu::storage_entry(15, true, compute),
+            // 16: the receivers in the gather's order (by patch)
+            gpu::storage_entry(16, true, compute),
         ],
     })
 }
@@ -226,6 +228,7 @@ fn bind_group(
             buffer(11, &r.shooter_cells),
             buffer(14, &r.chosen),
             buffer(15, group_shooters),
+            buffer(16, &r.members),
         ],
     })
 }
