@@ -17,26 +17,23 @@ fn edge_term(a: vec3f, b: vec3f, n: vec3f) -> f32 {
 }
 
 // Edge a→b of the polygon clipped to the receiver's upper hemisphere
-// (da = a·n, db = b·n): adds its terms and remembers where the outline
+// (da = a·n, db = b·n): adds its term and remembers where the outline
 // leaves and re-enters the hemisphere. Written without arrays, which a CPU
-// driver would keep in memory per lane.
+// driver would keep in memory per lane, and with one `edge_term` for all
+// three cases, as a CPU driver evaluates every branch taken by any lane.
 fn clipped_edge(a: vec3f, b: vec3f, n: vec3f, exit: ptr<function, vec3f>, entry: ptr<function, vec3f>) -> f32 {
     let da = dot(a, n);
     let db = dot(b, n);
-    if (da >= 0.0 && db >= 0.0) {
-        return edge_term(a, b, n);
-    }
-    if (da >= 0.0) {
-        let x = a + (b - a) * (da / (da - db));
+    // Where the edge crosses the horizon (used only when it does).
+    let x = a + (b - a) * (da / (da - db));
+    if (da >= 0.0 && db < 0.0) {
         *exit = x;
-        return edge_term(a, x, n);
     }
-    if (db >= 0.0) {
-        let x = a + (b - a) * (da / (da - db));
+    if (da < 0.0 && db >= 0.0) {
         *entry = x;
-        return edge_term(x, b, n);
     }
-    return 0.0;
+    let term = edge_term(select(x, a, da >= 0.0), select(x, b, db >= 0.0), n);
+    return select(0.0, term, da >= 0.0 || db >= 0.0);
 }
 
 // The form factor from a point at p with unit normal n to the
