@@ -239,7 +239,7 @@ pub fn run(
     let sums = Sums::new(texels, lightmap, coverage);
     let (params, dispatch) = resources::params(gpu, scene, texels, patches, texels_per_unit, options);
     let patch_coverage = patch_coverage(texels, patches, coverage);
-    let order = SubCellOrder::new(patches, texels.width);
+    let order = SubCellOrder::new(patches, texels);
     let inputs = Inputs {
         texels: gpu_texels,
         shares,

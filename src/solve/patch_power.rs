@@ -11,6 +11,7 @@
 //! that pass.
 
 use super::patches::Patches;
+use crate::texelize::{Texel, TexelSet};
 use super::resources::Resources;
 use crate::gpu::{self, Gpu, Shader};
 
@@ -119,8 +120,8 @@ pub(super) struct SubCellOrder {
 }
 
 impl SubCellOrder {
-    pub(super) fn new(patches: &Patches, atlas_width: u32) -> SubCellOrder {
-        let cell_of = |i: &u32| sub_cell(*i, atlas_width, patches.cell);
+    pub(super) fn new(patches: &Patches, texels: &TexelSet) -> SubCellOrder {
+        let cell_of = |i: &u32| sub_cell(texels.texels[*i as usize].index, texels.width, patches.cell);
         let mut members = patches.members.clone();
         let mut starts = Vec::with_capacity(patches.patches.len() * (SUB_CELLS * SUB_CELLS) as usize + 1);
         for p in &patches.patches {
@@ -162,16 +163,26 @@ mod tests {
     fn members_are_sorted_by_sub_cell_within_their_patch_and_each_run_starts_where_it_says() {
         // Two patches of a 4-wide atlas cut into 4-texel cells: the first
         // holds texels of both rows in a jumbled order, the second one texel.
-        let members = vec![5, 0, 4, 1, 7, 3];
+        // Texel k covers atlas texel atlas[k]: a member's sub-cell is its
+        // atlas texel's, not its place in the texel list.
+        let atlas = [7, 5, 4, 1, 3, 0, 6, 2];
+        let texels = TexelSet {
+            width: 4,
+            height: 2,
+            texels: atlas.iter().map(|&index| Texel { index, ..Default::default() }).collect(),
+            tint: Vec::new(),
+        };
+        let members = vec![1, 5, 2, 3, 0, 4];
         let patches = Patches {
             patches: vec![Patch { first: 0, count: 5, ..Default::default() }, Patch { first: 5, count: 1, ..Default::default() }],
             members,
             texel_patch: Vec::new(),
             cell: 4,
         };
-        let order = SubCellOrder::new(&patches, 4);
-        // Sub-cells: 0 → 0, 1 → 1, 3 → 3, 4 → 4, 5 → 5, 7 → 7 (each texel its own).
-        assert_eq!(order.members, [0, 1, 4, 5, 7, 3]);
+        let order = SubCellOrder::new(&patches, &texels);
+        // Atlas texels 5, 0, 4, 1, 7 and 3; each atlas texel is its own sub-cell.
+        let in_atlas: Vec<u32> = order.members.iter().map(|&i| atlas[i as usize]).collect();
+        assert_eq!(in_atlas, [0, 1, 4, 5, 7, 3]);
         let first: Vec<u32> = order.starts[..16].to_vec();
         assert_eq!(first, [0, 1, 2, 2, 2, 3, 4, 4, 5, 5, 5, 5, 5, 5, 5, 5]);
         // The second patch's one texel is in sub-cell 3; the array is closed by the total.
@@ -180,7 +191,8 @@ mod tests {
             for c in 0..16u32 {
                 let (start, end) = (order.starts[16 * p + c as usize], order.starts[16 * p + c as usize + 1]);
                 let end = if c == 15 { patches.patches[p].first + patches.patches[p].count } else { end };
-                assert!(order.members[start as usize..end as usize].iter().all(|&i| sub_cell(i, 4, 4) == c));
+                let run = &order.members[start as usize..end as usize];
+                assert!(run.iter().all(|&i| sub_cell(atlas[i as usize], 4, 4) == c));
             }
         }
     }

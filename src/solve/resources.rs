@@ -14,7 +14,7 @@ use super::shoot::MEASURE_CHUNK;
 use super::shooter_cull;
 use crate::gpu::Gpu;
 use crate::scene::Scene;
-use crate::texelize::TexelSet;
+use crate::texelize::{Texel, TexelSet};
 
 /// Parts a shooter patch's light is summed by for the near field
 /// (`SUB_CELL_COUNT` in include/bounce.wgsl).
@@ -228,8 +228,7 @@ fn receiver_row_shift(count: u32, max_dimension: u32) -> u32 {
 /// bouncing area, albedo and patch. A CPU driver fetches texels several
 /// times faster than it reads a storage buffer's elements, and the gather
 /// reads every receiver every batch.
-fn receiver_records(inputs: &Inputs, row_shift: u32) -> Vec<[u32; 4]> {
-    let texels = &inputs.texels.texels;
+fn receiver_records(texels: &[Texel], shares: &[f32], texel_patch: &[u32], row_shift: u32) -> Vec<[u32; 4]> {
     let width = 1usize << row_shift;
     let layer = texels.len().div_ceil(width).max(1) * width;
     let mut records = vec![[0u32; 4]; 4 * layer];
@@ -237,15 +236,15 @@ fn receiver_records(inputs: &Inputs, row_shift: u32) -> Vec<[u32; 4]> {
     for (i, t) in texels.iter().enumerate() {
         records[i] = bits(t.position, t.area.to_bits());
         records[layer + i] = bits(t.normal, t.index);
-        records[2 * layer + i] = bits(t.face_normal, inputs.shares[i].to_bits());
-        records[3 * layer + i] = bits(t.albedo, inputs.patches.texel_patch[i]);
+        records[2 * layer + i] = bits(t.face_normal, shares[i].to_bits());
+        records[3 * layer + i] = bits(t.albedo, texel_patch[i]);
     }
     records
 }
 
 fn receiver_texture(gpu: &Gpu, inputs: &Inputs, row_shift: u32) -> wgpu::Texture {
     use wgpu::util::DeviceExt;
-    let records = receiver_records(inputs, row_shift);
+    let records = receiver_records(&inputs.texels.texels, inputs.shares, &inputs.patches.texel_patch, row_shift);
     let width = 1u32 << row_shift;
     gpu.device.create_texture_with_data(
         &gpu.queue,
@@ -269,6 +268,43 @@ mod tests {
     use super::*;
     use crate::gpu::Shader;
     use crate::gpu::mirror::assert_mirrors;
+
+    #[test]
+    fn receiver_rows_are_4096_wide_until_their_count_would_pass_the_adapter_s_limit() {
+        assert_eq!(receiver_row_shift(1, 8192), 12);
+        assert_eq!(receiver_row_shift(4096 * 8192 - 1, 8192), 12);
+        // One more would need row 8,192: rows twice as wide instead.
+        assert_eq!(receiver_row_shift(4096 * 8192, 8192), 13);
+        assert_eq!(receiver_row_shift(u32::MAX, 16384), 14);
+        // Never wider than the adapter allows.
+        assert_eq!(receiver_row_shift(u32::MAX, 8192), 13);
+    }
+
+    #[test]
+    fn each_receiver_s_four_records_sit_at_its_index_in_four_layers() {
+        let texel = |k: f32| Texel {
+            position: [k, k + 0.1, k + 0.2],
+            area: k + 0.3,
+            normal: [k + 0.4, 0.0, 0.0],
+            index: 100 + k as u32,
+            face_normal: [0.0, k + 0.5, 0.0],
+            albedo: [0.0, 0.0, k + 0.6],
+            ..Default::default()
+        };
+        let texels = [texel(0.0), texel(1.0), texel(2.0)];
+        let records = receiver_records(&texels, &[1.0, 0.5, 0.25], &[7, 8, 9], 12);
+        // One row of 4,096 per layer, receiver i at column i.
+        assert_eq!(records.len(), 4 * 4096);
+        let floats = |r: [u32; 4]| r.map(f32::from_bits);
+        assert_eq!(floats(records[2]), [2.0, 2.1, 2.2, 2.3]);
+        assert_eq!(floats(records[4096 + 2])[0], 2.4);
+        assert_eq!(records[4096 + 2][3], 102);
+        assert_eq!(floats(records[2 * 4096 + 2]), [0.0, 2.5, 0.0, 0.25]);
+        assert_eq!(floats(records[3 * 4096 + 2])[2], 2.6);
+        assert_eq!(records[3 * 4096 + 2][3], 9);
+        // Past the last receiver, nothing.
+        assert_eq!(records[3], [0; 4]);
+    }
 
     #[test]
     fn the_bounce_params_mirror_bounce_wgsl() {
