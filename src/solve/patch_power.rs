@@ -11,7 +11,7 @@
 //! that pass.
 
 use super::patches::Patches;
-use crate::texelize::{Texel, TexelSet};
+use crate::texelize::TexelSet;
 use super::resources::Resources;
 use crate::gpu::{self, Gpu, Shader};
 
@@ -148,6 +148,7 @@ fn sub_cell(index: u32, atlas_width: u32, cell: u32) -> u32 {
 mod tests {
     use super::*;
     use crate::solve::patches::Patch;
+    use crate::texelize::Texel;
 
     #[test]
     fn a_texel_s_sub_cell_is_its_quarter_of_its_cell_across_and_down() {
