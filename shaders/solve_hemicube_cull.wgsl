@@ -35,7 +35,14 @@ const CASTER_WORDS: u32 = 9u;
 
 @group(0) @binding(0) var<uniform> cull: CullParams;
 @group(0) @binding(1) var<storage, read> caster_words: array<f32>;
-@group(0) @binding(2) var<storage, read> faces: array<HemicubeFace>;
+// The batch's hemicube faces, five per slot: a uniform buffer, which a CPU
+// driver reads once for all lanes, where it reads a storage buffer's
+// elements lane by lane (every triangle reads every face).
+struct FaceBatch {
+    items: array<HemicubeFace, FACES>,
+}
+const FACES: u32 = 160u;  // 5 · MAX_SHOOTERS
+@group(0) @binding(2) var<uniform> faces: FaceBatch;
 // The casters' indices (opaque, then alpha-MASK), then a list per face.
 @group(0) @binding(3) var<storage, read_write> culled: array<u32>;
 @group(0) @binding(4) var<storage, read_write> draws: array<atomic<u32>>;
@@ -57,11 +64,10 @@ struct Solid {
 // the triangle turned away from it by more than rounding. The bounds are
 // widened by twice the near plane: the solid's near side is then beyond it
 // wherever a face can see it (|x|, |y| ≤ z), so clipping never opens it.
-fn on_far_side(solid: u32, p: array<vec3f, 3>, n: vec3f, eye: vec3f) -> bool {
+fn on_far_side(solid: u32, s: Solid, p: array<vec3f, 3>, n: vec3f, eye: vec3f) -> bool {
     if (solid == NOT_SOLID) {
         return false;
     }
-    let s = solids[solid];
     if (all(eye >= s.lo - 2.0 * cull.near) && all(eye <= s.hi + 2.0 * cull.near)) {
         return false;
     }
@@ -108,11 +114,16 @@ fn cull_triangles(@builtin(global_invocation_id) id: vec3u) {
     let p = array<vec3f, 3>(caster_position(corners.x), caster_position(corners.y), caster_position(corners.z));
     let n = cross(p[1] - p[0], p[2] - p[0]);
     let solid = triangle_solid[triangle];
+    // Read once, not once per shooter.
+    var bounds = Solid();
+    if (solid != NOT_SOLID) {
+        bounds = solids[solid];
+    }
     for (var first = 0u; first < cull.faces; first += 5u) {
-        let shooter = faces[first];
+        let shooter = faces.items[first];
         let m = basis(shooter.normal);
         let origin = lifted_origin(shooter.position, shooter.normal, shooter.lift);
-        if (on_far_side(solid, p, n, origin)) {
+        if (on_far_side(solid, bounds, p, n, origin)) {
             continue;
         }
         var all_beyond = 0x1ffffffu;

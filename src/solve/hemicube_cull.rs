@@ -180,7 +180,7 @@ fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
             // 0: CullParams, 1: caster vertices, 2: the batch's hemicube faces
             gpu::uniform_entry(0, compute),
             gpu::storage_entry(1, true, compute),
-            gpu::storage_entry(2, true, compute),
+            gpu::uniform_entry(2, compute),
             // 3: the indices and lists, 4: the draws (both written)
             gpu::storage_entry(3, false, compute),
             gpu::storage_entry(4, false, compute),

@@ -195,7 +195,7 @@ impl Resources {
             hemicube_faces: gpu.zeroed_storage_buffer::<HemicubeFace>(
                 "solve_select hemicube faces",
                 5 * MAX_SHOOTERS as usize,
-                wgpu::BufferUsages::VERTEX,
+                wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::UNIFORM,
             ),
             shooter_cells: gpu.storage_buffer(
                 "solve_patch_power shooter cells",
