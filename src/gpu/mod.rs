@@ -243,6 +243,27 @@ impl Gpu {
         })
     }
 
+    /// A texture of 4-word records read with `textureLoad`, `width` to a
+    /// row, `rows` rows to a layer, laid out layer by layer in `records`.
+    pub fn records_texture(&self, label: &str, records: &[[u32; 4]], width: u32, rows: u32, layers: u32) -> wgpu::Texture {
+        use wgpu::util::DeviceExt;
+        self.device.create_texture_with_data(
+            &self.queue,
+            &wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d { width, height: rows, depth_or_array_layers: layers },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::Rgba32Uint,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            },
+            wgpu::util::TextureDataOrder::LayerMajor,
+            bytemuck::cast_slice(records),
+        )
+    }
+
     /// Blocks until all submitted work has finished. Once the device is lost
     /// it fails at once instead of waiting, and a wait during which the device
     /// is lost fails too.

@@ -243,24 +243,9 @@ fn receiver_records(texels: &[Texel], shares: &[f32], texel_patch: &[u32], row_s
 }
 
 fn receiver_texture(gpu: &Gpu, inputs: &Inputs, row_shift: u32) -> wgpu::Texture {
-    use wgpu::util::DeviceExt;
     let records = receiver_records(&inputs.texels.texels, inputs.shares, &inputs.patches.texel_patch, row_shift);
     let width = 1u32 << row_shift;
-    gpu.device.create_texture_with_data(
-        &gpu.queue,
-        &wgpu::TextureDescriptor {
-            label: Some("solve_shoot receivers"),
-            size: wgpu::Extent3d { width, height: records.len() as u32 / (4 * width), depth_or_array_layers: 4 },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba32Uint,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        },
-        wgpu::util::TextureDataOrder::LayerMajor,
-        bytemuck::cast_slice(&records),
-    )
+    gpu.records_texture("solve_shoot receivers", &records, width, records.len() as u32 / (4 * width), 4)
 }
 
 #[cfg(test)]

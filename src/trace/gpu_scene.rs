@@ -100,7 +100,7 @@ impl GpuScene {
         }
         let mut data = records.data;
         data.resize((rows * ROW) as usize, [0; 4]);
-        let texture = upload(gpu, &data, rows);
+        let texture = gpu.records_texture("trace scene", &data, ROW, rows, 1);
         let view = texture.create_view(&Default::default());
         let scale = triangles
             .iter()
@@ -391,25 +391,6 @@ fn scene_triangles(scene: &Scene, materials: &Materials) -> Vec<SceneTriangle> {
         }
     }
     triangles
-}
-
-fn upload(gpu: &Gpu, data: &[[u32; 4]], rows: u32) -> wgpu::Texture {
-    use wgpu::util::DeviceExt;
-    gpu.device.create_texture_with_data(
-        &gpu.queue,
-        &wgpu::TextureDescriptor {
-            label: Some("trace scene"),
-            size: wgpu::Extent3d { width: ROW, height: rows, depth_or_array_layers: 1 },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba32Uint,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        },
-        wgpu::util::TextureDataOrder::LayerMajor,
-        bytemuck::cast_slice(data),
-    )
 }
 
 #[cfg(test)]
