@@ -71,7 +71,7 @@ struct Receiver {
     patch_index: u32,
 }
 
-// Receiver `i` from the four layers of `records` (`shoot::receiver_records`),
+// Receiver `i` from the four layers of `records` (`resources::receiver_records`),
 // 1 << `row_shift` receivers to a row. A CPU driver fetches texels several
 // times faster than it reads a storage buffer's elements.
 fn load_receiver(records: texture_2d_array<u32>, i: u32, row_shift: u32) -> Receiver {

@@ -4,8 +4,9 @@
 //! sub-cells of their patches for the near field (`shooter_cells_of_batch`).
 //! Both entry points share one bind group.
 //!
-//! Each patch's members are uploaded sorted by sub-cell, with where each
-//! sub-cell's run starts, so that an invocation of `shooter_cells_of_batch`
+//! Each patch's members are sorted by sub-cell (`SubCellOrder`; the
+//! members buffer is shared, in `resources`), with where each sub-cell's
+//! run starts, so that an invocation of `shooter_cells_of_batch`
 //! reads only its own sub-cell's texels: a CPU driver reads a storage
 //! buffer lane by lane, and every lane reading every member was most of
 //! that pass.
