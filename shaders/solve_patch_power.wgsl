@@ -99,19 +99,21 @@ fn shooter_cells_of_batch(@builtin(workgroup_id) group: vec3<u32>, @builtin(loca
     var area = 0.0;
     var centroid = vec3f(0.0);
     var normal = vec3f(0.0);
+    // The sub-cell's members (none in an unused slot).
+    var run = vec2<u32>(0u);
     if (s.patch_index != NO_TRIANGLE) {
-        let run = cell_members(s.patch_index, c);
-        for (var m = run.x; m < run.y; m++) {
-            let i = members[m];
-            let r = receiver(i);
-            let texel = r.texel;
-            // Light by the bouncing area, over the whole area: a sub-cell
-            // where two surfaces coincide has half the radiance of each.
-            power += unshot[i].rgb * texel.area * r.share;
-            area += texel.area;
-            centroid += texel.position * texel.area;
-            normal += texel.normal * texel.area;
-        }
+        run = cell_members(s.patch_index, c);
+    }
+    for (var m = run.x; m < run.y; m++) {
+        let i = members[m];
+        let r = receiver(i);
+        let texel = r.texel;
+        // Light by the bouncing area, over the whole area: a sub-cell
+        // where two surfaces coincide has half the radiance of each.
+        power += unshot[i].rgb * texel.area * r.share;
+        area += texel.area;
+        centroid += texel.position * texel.area;
+        normal += texel.normal * texel.area;
     }
     let base = k * SUB_CELL_ROWS * SUB_CELL_COUNT;
     let at = select(vec3f(0.0), centroid / area, area > 0.0);
@@ -129,7 +131,7 @@ fn shooter_cells_of_batch(@builtin(workgroup_id) group: vec3<u32>, @builtin(loca
     shooter_cells[base + 2u * SUB_CELL_COUNT + c] = vec4f(facing, select(0.0, 1.0, is_curved && c == 0u));
     var own = 0.0;
     if (is_curved) {
-        own = own_share(s, c);
+        own = own_share(s, c, run);
     }
     own_sums[c] = own;
     workgroupBarrier();
@@ -147,11 +149,10 @@ fn shooter_cells_of_batch(@builtin(workgroup_id) group: vec3<u32>, @builtin(loca
 // to texel i, as the near field lights them (solve_shoot.wgsl's
 // `near_light`): the share of its light a patch gives itself where it is
 // concave, which the shoot pass's `finish` counts as covered. Invocation
-// `c` sums the texels of sub-cell `c`. Left in the first sub-cell's
-// centroid's w.
-fn own_share(s: Shooter, c: u32) -> f32 {
+// `c` sums the texels of sub-cell `c`, `run` in `members`. Left in the
+// first sub-cell's centroid's w.
+fn own_share(s: Shooter, c: u32, run: vec2<u32>) -> f32 {
     var sum = 0.0;
-    let run = cell_members(s.patch_index, c);
     for (var m = run.x; m < run.y; m++) {
         let r = receiver(members[m]);
         let texel = r.texel;

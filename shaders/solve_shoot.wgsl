@@ -323,7 +323,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     var slots = group_shooters[j / 64u];
     if (slots == 0u && !shot) {
         // Nothing reaches it and it keeps its light: only the record of
-        // what it received is cleared, and the texel is never read.
+        // what it received is cleared, and its sums are never read.
         unshot[i].w = 0.0;
         return;
     }

@@ -473,8 +473,8 @@ impl Passes {
     ) -> Passes {
         let resources = Resources::new(gpu, inputs, params, dispatch);
         let hemicube = Hemicube::new(gpu, scene, &resources);
-        let in_order: Vec<Texel> = inputs.order.members.iter().map(|&i| inputs.texels.texels[i as usize]).collect();
-        let shooter_cull = ShooterCull::new(gpu, &in_order, params, &resources.shooters);
+        let shooter_cull =
+            ShooterCull::new(gpu, &inputs.texels.texels, &inputs.order.members, params, &resources.shooters);
         let (casters, faces) = (&hemicube.casters, &resources.hemicube_faces);
         let cull = HemicubeCull::new(gpu, casters, faces, 5 * dispatch.shooter_count, params.near, face_list_bytes);
         Passes {

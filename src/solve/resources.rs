@@ -180,7 +180,7 @@ impl Resources {
             dispatch,
             params_buffer: gpu.uniform_buffer("solve_shoot params", &params),
             receivers: receiver_texture(gpu, inputs, params.receiver_row_shift).create_view(&Default::default()),
-            members: gpu.storage_buffer("solve_patch_power members", &inputs.order.members, none),
+            members: gpu.storage_buffer("bounce members", &inputs.order.members, none),
             patches: gpu.storage_buffer("solve_select patches", &patches.patches, none),
             unshot: gpu.storage_buffer("solve_shoot unshot", unshot, wgpu::BufferUsages::COPY_SRC),
             lightmap: gpu.storage_buffer("solve_shoot lightmap", &lightmap4, wgpu::BufferUsages::COPY_SRC),

@@ -44,9 +44,16 @@ pub struct ShooterCull {
 
 impl ShooterCull {
     /// For the bounce pass's `params` and its batch of `shooters` (a
-    /// `ShooterBatch` uniform buffer).
-    pub fn new(gpu: &Gpu, texels: &[Texel], params: BounceParams, shooters: &wgpu::Buffer) -> ShooterCull {
-        let groups = receiver_groups(texels);
+    /// `ShooterBatch` uniform buffer), with the gather taking `texels` in
+    /// `order`.
+    pub fn new(
+        gpu: &Gpu,
+        texels: &[Texel],
+        order: &[u32],
+        params: BounceParams,
+        shooters: &wgpu::Buffer,
+    ) -> ShooterCull {
+        let groups = receiver_groups(texels, order);
         let dispatch = gpu.dispatch_size(groups.len() as u32, 64);
         let params = gpu.uniform_buffer("solve_shooter_cull params", &params.with_row_stride(dispatch.0 * 64));
         let none = wgpu::BufferUsages::empty();
@@ -90,16 +97,16 @@ pub fn in_plane(texels: &[Texel]) -> f32 {
     2.0 * ROUNDING * texels.iter().map(|t| Vec3::from(t.position).abs().max_element()).fold(0.0f32, f32::max)
 }
 
-/// The bounds of each run of `GROUP_TEXELS` texels, in order.
-fn receiver_groups(texels: &[Texel]) -> Vec<ReceiverGroup> {
-    texels.chunks(GROUP_TEXELS).map(group_bounds).collect()
+/// The bounds of each run of `GROUP_TEXELS` texels of `order`.
+fn receiver_groups(texels: &[Texel], order: &[u32]) -> Vec<ReceiverGroup> {
+    order.chunks(GROUP_TEXELS).map(|run| group_bounds(run.iter().map(|&i| &texels[i as usize]))).collect()
 }
 
-fn group_bounds(texels: &[Texel]) -> ReceiverGroup {
-    let positions = texels.iter().map(|t| Vec3::from(t.position));
+fn group_bounds<'a>(texels: impl Iterator<Item = &'a Texel> + Clone) -> ReceiverGroup {
+    let positions = texels.clone().map(|t| Vec3::from(t.position));
     let lo = positions.clone().fold(Vec3::INFINITY, Vec3::min);
     let hi = positions.fold(Vec3::NEG_INFINITY, Vec3::max);
-    let normals: Vec<Vec3> = texels.iter().map(|t| Vec3::from(t.normal).normalize_or_zero()).collect();
+    let normals: Vec<Vec3> = texels.map(|t| Vec3::from(t.normal).normalize_or_zero()).collect();
     let sum: Vec3 = normals.iter().sum();
     let axis = sum.normalize_or_zero();
     let widest = normals.iter().map(|n| n.dot(axis).clamp(-1.0, 1.0).acos()).fold(0.0f32, f32::max);
@@ -130,7 +137,7 @@ mod tests {
                 texel([a.cos() * 2.0, a.sin() * 2.0, 0.5 - a], [a.cos(), a.sin(), 0.0])
             })
             .collect();
-        let g = group_bounds(&texels);
+        let g = group_bounds(texels.iter());
         let (lo, hi, axis) = (Vec3::from(g.lo), Vec3::from(g.hi), Vec3::from(g.axis));
         for t in &texels {
             let p = Vec3::from(t.position);
@@ -145,7 +152,7 @@ mod tests {
     #[test]
     fn normals_that_cancel_bound_nothing() {
         let texels = [texel([0.0; 3], [0.0, 1.0, 0.0]), texel([1.0, 0.0, 0.0], [0.0, -1.0, 0.0])];
-        assert_eq!(group_bounds(&texels).cos_spread, -1.0);
+        assert_eq!(group_bounds(texels.iter()).cos_spread, -1.0);
     }
 
     #[test]
