@@ -3,18 +3,23 @@
 //! Quadro FX4400), baked again with our times next to the paper's, time and
 //! memory per stage, and the error against the CPU reference path tracer;
 //! then how the bounce pass scales as texels and triangles double, and the
-//! direct light at the meshes' vertices against the texels. Results go to
-//! stdout as markdown; progress to stderr.
+//! direct light at the meshes' vertices against the texels; and, asked for
+//! with `--only ceiling`, the direct pass against bare kernels of its light
+//! loop and its rays (`table4/ceiling.rs`). Results go to stdout as
+//! markdown; progress to stderr.
 //!
 //! ```text
 //! cargo bench --bench table4                          # everything (see BENCHMARKS.md for how long)
 //! cargo bench --bench table4 -- --quick               # a smoke run: two cells at 256², small reference
 //! cargo bench --bench table4 -- --only grid --sizes 256,512 --lights 96,384 --modes cube
+//! cargo bench --bench table4 -- --only ceiling --sizes 256 --lights 96,1024 --modes budget
 //! ```
 //!
 //! The environment is `--env`, else `$BAKE_BENCH_ENV`, else the captured
 //! `/work/shared/env/courtyard.exr` where it exists, else `fixtures/sky_sun.exr`.
 
+#[path = "table4/ceiling.rs"]
+mod ceiling;
 #[path = "table4/vertex.rs"]
 mod vertex;
 
@@ -51,6 +56,8 @@ enum Section {
     Bounce,
     /// The direct light at the vertices (the paper's per-vertex comparison) against the texels.
     Vertex,
+    /// The direct pass against bare kernels of its light loop and its rays.
+    Ceiling,
 }
 
 #[derive(Parser)]
@@ -292,7 +299,66 @@ fn main() -> Result<()> {
     if args.only.contains(&Section::Vertex) {
         vertex_table(&gpu, &args, &statues, &map)?;
     }
+    if args.only.contains(&Section::Ceiling) {
+        ceiling_table(&gpu, &args, &statues, &map)?;
+    }
     println!("\nbenchmark wall time: {:.0} s", started.elapsed().as_secs_f64());
+    Ok(())
+}
+
+/// The direct pass against its bare-kernel ceiling (`ceiling.rs`) in every
+/// cell of the grid's sizes, modes and light counts.
+fn ceiling_table(gpu: &Gpu, args: &Args, statues: &Statues, map: &Arc<EnvironmentMap>) -> Result<()> {
+    println!("\n## Direct pass against its bare-kernel ceiling\n");
+    println!(
+        "The same points and lights through bare kernels (benches/table4/ceiling.rs): the light loop (each pair's \
+         cosine and power) and shadow rays (trace.wgsl's walk, one ray per lane and turn, every lane walking). \
+         Ceiling = the light loop + the pass's walks (nodes and triangles visited) at the bare rays' rate per \
+         visit.\n"
+    );
+    println!(
+        "| lights | mode | atlas | texels | pairs (M) | rays (M) | visits per ray | direct (s) | M pairs/s | \
+         bare light loop (s) | bare visits per ray | bare M visits/s | ceiling (s) | ceiling M pairs/s | \
+         direct / ceiling |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    for &size in &args.sizes {
+        let mut options = BakeOptions::default();
+        options.unwrap.max_atlas_size = size;
+        let scene = statues.scene()?;
+        let texels = texelize(gpu, &scene, &options)?;
+        for &mode in &args.modes {
+            for &count in &args.lights {
+                let lights = LightSet::extract(map, light_mode(mode, count)?, 0.0, 1.0);
+                let c = ceiling::measure(gpu, &scene, &texels.texels, &lights)?;
+                eprintln!(
+                    "ceiling {size}² {} {count}: direct {:.2} s, ceiling {:.2} s",
+                    mode_name(mode),
+                    c.direct,
+                    c.seconds()
+                );
+                let per_ray = |visits: u64, rays: u64| visits as f64 / rays.max(1) as f64;
+                println!(
+                    "| {} | {} | {size}² | {} | {:.0} | {:.1} | {:.1} | {:.2} | {:.1} | {:.2} | {:.1} | {:.0} | {:.2} | \
+                     {:.1} | {:.1} |",
+                    c.lights,
+                    mode_name(mode),
+                    c.points,
+                    c.pairs() / 1e6,
+                    c.rays as f64 / 1e6,
+                    per_ray(c.visits, c.rays),
+                    c.direct,
+                    c.pairs() / c.direct / 1e6,
+                    c.light_loop,
+                    per_ray(c.bare_visits, c.bare_rays),
+                    c.visit_rate() / 1e6,
+                    c.seconds(),
+                    c.pairs() / c.seconds() / 1e6,
+                    c.direct / c.seconds()
+                );
+            }
+        }
+    }
     Ok(())
 }
 

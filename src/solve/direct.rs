@@ -151,6 +151,8 @@ struct Batches<'a> {
     cut: wgpu::Buffer,
     point_count: u32,
     rays: u64,
+    /// Nodes and triangles the rays' walks visited (a benchmark's figure).
+    visits: u64,
     /// Luminance of L·Ω that earns a light one ray (`RAYS`).
     power_per_ray: f32,
 }
@@ -189,12 +191,13 @@ impl Batches<'_> {
             pass.dispatch_workgroups(groups_x, groups_y, 1);
         }
         gpu.queue.submit([encoder.finish()]);
-        let [flags, rays, _visits, cut_count]: [u32; 4] =
+        let [flags, rays, visits, cut_count]: [u32; 4] =
             read_buffer(gpu, &self.status, 4)?.try_into().expect("four status words");
         if flags & WALK_CUT != 0 {
             bail!("a ray's walk through the scene's hierarchy ran past its limit: the hierarchy is degenerate");
         }
         self.rays += rays as u64;
+        self.visits += visits as u64;
         if cut_count == 0 {
             return Ok(None);
         }
@@ -309,6 +312,7 @@ impl<'a> DirectPass<'a> {
             cut: gpu.zeroed_storage_buffer::<u32>("solve_direct cut points", point_count, wgpu::BufferUsages::COPY_SRC),
             point_count: point_count as u32,
             rays: 0,
+            visits: 0,
             power_per_ray: power_per_ray(lights),
         };
         let batch = batch_size.clamp(1, MAX_BATCH) as usize;
@@ -325,6 +329,7 @@ impl<'a> DirectPass<'a> {
             covered: sums.chunks_exact(2).map(|s| [s[1][0], s[1][1]]).collect(),
             batches: count,
             rays: batches.rays,
+            visits: batches.visits,
             seconds: start.elapsed().as_secs_f64(),
         })
     }
@@ -338,6 +343,9 @@ pub struct Gathered {
     pub covered: Vec<[f32; 2]>,
     pub batches: usize,
     pub rays: u64,
+    /// Nodes and triangles the rays' walks visited (read by the benchmarks only).
+    #[cfg_attr(not(feature = "internals"), allow(dead_code))]
+    pub visits: u64,
     pub seconds: f64,
 }
 

@@ -13,5 +13,5 @@ pub(crate) mod rays;
 pub(crate) mod surfaces;
 pub(crate) mod texture;
 
-pub(crate) use gpu_scene::GpuScene;
+pub use gpu_scene::GpuScene;
 pub use surfaces::Surfaces;
