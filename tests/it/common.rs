@@ -8,7 +8,7 @@ use std::path::Path;
 use bake::Baked;
 use bake::config::BakeOptions;
 use bake::environment::{EnvironmentMap, LightMode, LightSet};
-use bake::fixtures::SceneBuilder;
+use bake::fixtures::{MeshData, SceneBuilder};
 use bake::gpu::Gpu;
 use bake::progress::Silent;
 
@@ -239,4 +239,23 @@ pub fn read_ktx2(bytes: &[u8]) -> (usize, usize, usize, Vec<[f32; 3]>) {
     assert_eq!(texels.len(), width * height * depth.max(1) * 4);
     let unpack = |t: &[u8]| bake::export::ktx2::unpack_e5b9g9r9(u32::from_le_bytes(t.try_into().unwrap()));
     (width, height, depth, texels.chunks_exact(4).map(unpack).collect())
+}
+
+/// The triangles of `sphere` whose centroid `keep` accepts, turned to face
+/// the sphere's inside.
+pub fn inside_of(sphere: &MeshData, keep: impl Fn(glam::Vec3) -> bool) -> MeshData {
+    let mut part = MeshData::default();
+    for triangle in sphere.indices.chunks(3) {
+        let corner = |k: usize| glam::Vec3::from(sphere.positions[triangle[k] as usize]);
+        if !keep((corner(0) + corner(1) + corner(2)) / 3.0) {
+            continue;
+        }
+        for &i in &[triangle[0], triangle[2], triangle[1]] {
+            part.indices.push(part.positions.len() as u32);
+            part.positions.push(sphere.positions[i as usize]);
+            part.normals.push((-glam::Vec3::from(sphere.normals[i as usize])).to_array());
+            part.uv0.push(sphere.uv0[i as usize]);
+        }
+    }
+    part
 }

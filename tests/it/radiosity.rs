@@ -109,25 +109,6 @@ fn closed_room_with_one_emitting_wall_keeps_the_mean() {
     }
 }
 
-/// The triangles of `sphere` whose centroid `keep` accepts, turned to face
-/// the sphere's inside.
-fn inside_of(sphere: &MeshData, keep: impl Fn(Vec3) -> bool) -> MeshData {
-    let mut part = MeshData::default();
-    for triangle in sphere.indices.chunks(3) {
-        let corner = |k: usize| Vec3::from(sphere.positions[triangle[k] as usize]);
-        if !keep((corner(0) + corner(1) + corner(2)) / 3.0) {
-            continue;
-        }
-        for &i in &[triangle[0], triangle[2], triangle[1]] {
-            part.indices.push(part.positions.len() as u32);
-            part.positions.push(sphere.positions[i as usize]);
-            part.normals.push((-Vec3::from(sphere.normals[i as usize])).to_array());
-            part.uv0.push(sphere.uv0[i as usize]);
-        }
-    }
-    part
-}
-
 fn mesh_area(mesh: &MeshData) -> f64 {
     let p = |i: u32| Vec3::from(mesh.positions[i as usize]).as_dvec3();
     mesh.indices.chunks(3).map(|t| 0.5 * (p(t[1]) - p(t[0])).cross(p(t[2]) - p(t[0])).length()).sum()
@@ -144,8 +125,8 @@ fn the_inside_of_a_sphere_lit_by_a_glowing_cap_is_evenly_lit() {
     // left out, the cap's own patches' glow went to the rest of the sphere
     // and the cap read 8 % low.
     let sphere = MeshData::sphere(1.0, 48, 24);
-    let cap = inside_of(&sphere, |c| c.y > 0.8);
-    let rest = inside_of(&sphere, |c| c.y <= 0.8);
+    let cap = common::inside_of(&sphere, |c| c.y > 0.8);
+    let rest = common::inside_of(&sphere, |c| c.y <= 0.8);
     let rho = 0.5;
     let mut builder = SceneBuilder::new();
     builder.object("cap", &cap, [rho, rho, rho, 1.0], [1.0; 3], Placement::default());

@@ -345,3 +345,62 @@ fn lights_grazing_the_horizon_by_a_rounding_error_end_their_rays() {
     eprintln!("{count} grazing lights: brightest ground texel {brightest:e}");
     assert!(brightest < 1e-4, "the ground took {brightest} from lights below its horizon");
 }
+
+/// A texel on a concave surface beside a shadow edge is supersampled: its
+/// sub-samples lie on the plane of its facet, and past a crease that plane
+/// runs behind the next facet, where a sub-sample's rays start inside the
+/// surface and find it blocked (a statue's texel read 0.66 of its light).
+/// A black bowl (the lower half of a sphere's inside) under a sun 40° up:
+/// the rim shadows part of it, and every texel whose whole footprint the
+/// sun lights holds the light of its centre, E ∝ n·s, supersampled or not.
+#[test]
+fn texels_of_a_concave_surface_beside_a_shadow_edge_keep_their_light() {
+    let gpu = common::gpu();
+    let bowl = common::inside_of(&MeshData::sphere(1.0, 48, 24), |c| c.y < 0.0);
+    let mut builder = SceneBuilder::new();
+    builder.object("bowl", &bowl, [0.0, 0.0, 0.0, 1.0], [0.0; 3], Placement::default());
+    let sun_direction = Vec3::new(40f32.to_radians().cos(), 40f32.to_radians().sin(), 0.0);
+    let cos_radius = 0.5f32.to_radians().cos();
+    let sun = EnvironmentMap::from_fn(2048, 1024, |d| {
+        if Vec3::from(d).dot(sun_direction) >= cos_radius { [1e3; 3] } else { [0.0; 3] }
+    });
+    let lights = common::lights(&sun, LightMode::Budget { count: 32 });
+    assert_eq!(lights.lights.len(), 1, "a uniform disc is one light");
+    let baked = common::bake(&gpu, &builder, &lights, &common::options(128));
+    assert!(baked.solution.supersampled > 50, "{} texels supersampled", baked.solution.supersampled);
+    // On the unit sphere a ray from q towards the sun meets it again at
+    // t = −2 q·s; the point is lit where that is above the rim (y = 0).
+    let lit = |q: Vec3| {
+        let q = q.normalize();
+        q.dot(sun_direction) < -0.05 && (q - 2.0 * q.dot(sun_direction) * sun_direction).y > 0.02
+    };
+    let texels = common::values_of(&baked, 0);
+    let at: std::collections::HashMap<u32, Vec3> = texels.iter().map(|(t, _)| (t.index, t.position())).collect();
+    let width = baked.texels.width as i64;
+    let (mut ratios, mut edge_texels) = (Vec::new(), 0);
+    for (t, value) in &texels {
+        let near = |d: i64| at.get(&((t.index as i64 + d) as u32)).copied();
+        let (Some(r), Some(l), Some(u), Some(d)) = (near(1), near(-1), near(width), near(-width)) else {
+            continue;
+        };
+        let (du, dv) = ((r - l) / 4.0, (u - d) / 4.0);
+        let corners = [du + dv, du - dv, -du + dv, -du - dv].map(|c| t.position() + c);
+        if !corners.iter().all(|&c| lit(c)) || !lit(t.position()) {
+            continue;
+        }
+        // Texels whose neighbours straddle the edge are the ones supersampled.
+        edge_texels += usize::from(![r, l, u, d].iter().all(|&n| lit(n)));
+        ratios.push(value / t.normal().dot(sun_direction).max(1e-6));
+    }
+    let mut sorted = ratios.clone();
+    sorted.sort_by(f32::total_cmp);
+    let typical = sorted[sorted.len() / 2];
+    let worst = ratios.iter().map(|r| (r / typical - 1.0).abs()).fold(0.0f32, f32::max);
+    eprintln!(
+        "{} lit texels ({edge_texels} beside the edge), {} supersampled in all; worst {worst:.4} off E ∝ n·s",
+        ratios.len(),
+        baked.solution.supersampled
+    );
+    assert!(edge_texels >= 20, "only {edge_texels} wholly lit texels beside the edge");
+    assert!(worst < 0.05, "a wholly lit texel is {worst:.3} off the light at its centre");
+}
