@@ -1,14 +1,17 @@
 #!/usr/bin/env python3
 """The "Current figures" at the top of BENCHMARKS.md: the README's bake by
-stage, and the fixtures' error against the CPU path tracer with the solve's
-time, each with the commit, date and adapter it ran on.
+stage, the fixtures' error against the CPU path tracer with the solve's
+time, Table 4's cells at 256² and the direct pass against its bare-kernel
+ceiling there (`cargo bench --bench table4`), each with the commit, date
+and adapter it ran on.
 
     python3 benches/current.py            # build, then print the section
     python3 benches/current.py --write    # and replace it in BENCHMARKS.md
 
 --env-dir names the real captured HDRIs (default ../shared/env); fixtures'
-own sky_sun is always used. Takes about six minutes on a 2-core machine
-without a GPU. Table 4's grid is `cargo bench --bench table4`.
+own sky_sun is always used. --table4-sizes picks Table 4's atlas sizes
+(default 256; 512 and 1024 take far longer without a GPU). Takes about
+twenty minutes on a 2-core machine without a GPU.
 """
 
 import argparse
@@ -100,7 +103,65 @@ def accuracy_rows(binary, envs, work):
     return rows
 
 
-def section(binary, env_dir):
+TABLE4_LIGHTS = "96,384,1536,6144"
+
+
+def markdown_table(text, heading):
+    """The rows of the first table after `heading` in the bench's output,
+    each a dict by column name (the first column of a name)."""
+    lines = text[text.index(heading):].splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith("|"))
+    names = [c.strip() for c in lines[start].strip("|").split("|")]
+    rows = []
+    for line in lines[start + 2:]:
+        if not line.startswith("|"):
+            break
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        rows.append({name: cells[i] for i, name in reversed(list(enumerate(names)))})
+    return rows
+
+
+def table4_rows(sizes):
+    """Table 4's cells and the direct pass against its ceiling, from one run
+    of the table4 bench (it builds itself)."""
+    run = subprocess.run(
+        ["cargo", "bench", "--quiet", "--bench", "table4", "--", "--only", "grid,ceiling", "--sizes", sizes,
+         "--lights", TABLE4_LIGHTS, "--modes", "budget,cube"],
+        cwd=ROOT, capture_output=True, text=True)
+    if run.returncode != 0:
+        sys.exit(f"the table4 bench failed ({run.returncode}):\n{run.stderr[-4000:]}")
+    header = run.stdout.splitlines()[2]
+    cells = markdown_table(run.stdout, "## Table 4\n")
+    ceiling = markdown_table(run.stdout, "## Direct pass against its bare-kernel ceiling")
+    lines = [
+        f"**Table 4** (`cargo bench --bench table4 -- --only grid,ceiling --sizes {sizes} --lights {TABLE4_LIGHTS} "
+        f"--modes budget,cube`; {header.split('; ', 2)[2]}). Ours: light extraction, unwrap, texelize and solve; "
+        "error against 256 texels × 16,384 paths of the CPU path tracer:",
+        "",
+        "| lights | mode | atlas | paper (s) | ours (s) | ours / paper | direct (s) | bounce (s) | shots | error |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for c in cells:
+        lines.append(f"| {c['lights']} | {c['mode']} | {c['atlas']} | {c['paper']} | {c['ours']} | "
+                     f"{c['ours/paper']} | {c['direct']} | {c['bounce']} | {c['shots']} | {c['error']} |")
+    lines += [
+        "",
+        "**The direct pass against its bare-kernel ceiling** in the same cells (`benches/table4/ceiling.rs`): the "
+        "light loop alone (each pair's cosine and power) plus the pass's own walks through the hierarchy at the "
+        "rate of a bare walk kernel with every lane busy:",
+        "",
+        "| lights | mode | atlas | pairs (M) | rays (M) | visits per ray | direct (s) | M pairs/s | ceiling (s) | "
+        "ceiling M pairs/s | direct / ceiling |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for c in ceiling:
+        lines.append(f"| {c['lights']} | {c['mode']} | {c['atlas']} | {c['pairs (M)']} | {c['rays (M)']} | "
+                     f"{c['visits per ray']} | {c['direct (s)']} | {c['M pairs/s']} | {c['ceiling (s)']} | "
+                     f"{c['ceiling M pairs/s']} | {c['direct / ceiling']} |")
+    return lines + [""]
+
+
+def section(binary, env_dir, table4_sizes):
     envs = ["fixtures/sky_sun.exr"]
     if os.path.isdir(env_dir):
         envs += sorted(os.path.join(env_dir, e) for e in os.listdir(env_dir) if e.endswith(".exr"))
@@ -126,6 +187,7 @@ def section(binary, env_dir):
             "",
             *accuracy_rows(binary, envs, work),
             "",
+            *table4_rows(table4_sizes),
             *cycles_rows(os.path.join(ROOT, "benches/cycles_results.json")),
         ]
     return "\n".join(lines)
@@ -180,10 +242,11 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--bin", help="a bake binary to measure (default: build this checkout's release binary)")
     parser.add_argument("--env-dir", default=os.path.join(ROOT, "../shared/env"))
+    parser.add_argument("--table4-sizes", default="256", help="Table 4's atlas sizes, comma-separated")
     parser.add_argument("--write", action="store_true", help="replace the section in BENCHMARKS.md")
     args = parser.parse_args()
     binary = args.bin or build()
-    text = section(binary, args.env_dir)
+    text = section(binary, args.env_dir, args.table4_sizes)
     print(text)
     if args.write:
         write(text)
