@@ -9,15 +9,13 @@
 //! chart, facing within `SAME_SURFACE_COS`): its footprint is then all
 //! surface, mapped to the world by the central differences of its
 //! neighbours' positions. Eight sub-samples in the footprint (the D3D
-//! standard 8× pattern), lifted a little off that flat footprint, are
-//! gathered by a second direct pass. A sub-sample that the texel's centre
-//! cannot reach along the surface (a wall standing on the floor between
-//! them, or the next facet of a concave surface rising above the footprint's
-//! plane) is left out: the texel stands for the part of its footprint a
-//! viewer can see, and light from behind the wall must not leak in. Each
-//! sub-sample kept is gathered at its lifted point, which that check has
-//! just found on the centre's side of every surface, so none casts its rays
-//! from behind a crease.
+//! standard 8× pattern) are gathered by a second direct pass. A sub-sample
+//! that the texel's centre cannot reach along the surface (a wall standing
+//! on the floor between them) is left out: the texel stands for the part of
+//! its footprint a viewer can see, and light from behind the wall must not
+//! leak in. Where a concave surface rises above the footprint's flat plane
+//! (past a crease), a sub-sample is moved up onto it (`on_surface`): on the
+//! plane it would lie behind the surface and cast its rays from there.
 //!
 //! The direct pass gathers the texels first, which flags them, then the
 //! sub-samples alone.
@@ -41,9 +39,9 @@ const EDGE_CONTRAST: f64 = 0.2;
 /// Neighbours whose normals turn further than this (cosine) are not the
 /// same smooth surface: the footprint would not be flat across them.
 const SAME_SURFACE_COS: f32 = 0.9;
-/// Height of the sub-samples, and of the segment from the centre to each,
-/// above the surface, in texel widths: above the curvature of a surface bent
-/// at most `SAME_SURFACE_COS` per texel, below anything standing on it.
+/// Height of the segment from the centre to each sub-sample above the
+/// surface, in texel widths: above the curvature of a surface bent at most
+/// `SAME_SURFACE_COS` per texel, below anything standing on it.
 const LIFT_TEXELS: f64 = 0.05;
 
 /// The sub-samples of the flagged texels, as texels for a direct pass.
@@ -167,15 +165,25 @@ fn sub_samples(occluders: &Surfaces, atlas: &Atlas, i: usize) -> Vec<Texel> {
         .iter()
         .enumerate()
         .filter_map(|(k, [ox, oy])| {
-            let lifted = (t.position() + du * (ox / 16.0) + dv * (oy / 16.0)).as_dvec3() + lift;
-            (!occluders.blocks(centre, lifted)).then(|| Texel {
-                position: lifted.as_vec3().to_array(),
+            let on_plane = (t.position() + du * (ox / 16.0) + dv * (oy / 16.0)).as_dvec3();
+            (!occluders.blocks(centre, on_plane + lift)).then(|| Texel {
+                position: on_surface(occluders, on_plane, lift).as_vec3().to_array(),
                 // A different filter turn per sub-sample (the direct pass turns its taps by index).
                 index: t.index.wrapping_mul(PATTERN.len() as u32).wrapping_add(k as u32),
                 ..*t
             })
         })
         .collect()
+}
+
+/// The sub-sample at `on_plane`, on the footprint's flat plane, moved up
+/// onto the surface where the surface rises above that plane (a concave
+/// one, past a crease): searched from `lift` above, which the reach check
+/// found in front of every surface. Where the surface falls away below the
+/// plane (a convex one) the point stays on the plane, in front of it.
+fn on_surface(occluders: &Surfaces, on_plane: DVec3, lift: DVec3) -> DVec3 {
+    let above = on_plane + lift;
+    occluders.first_hit(above, -lift, 1.0).map_or(on_plane, |(t, _, _)| above - lift * t)
 }
 
 /// Replaces each flagged texel's irradiance with the mean of its
