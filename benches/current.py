@@ -204,8 +204,8 @@ def cycles_rows(path):
     when = lambda t: "not reached" if t is None else f"{mark[t[0]]}{t[1]:.1f} s"
     lines = [
         "**Against Blender Cycles** (time to reach a relative RMSE against a converged Cycles bake; 128² atlases; "
-        f"from `{os.path.relpath(path, ROOT)}`, the last run of `benches/cycles.py`, whose commit, method and "
-        "caveats are in \"bake against Blender Cycles\" below):",
+        f"from `{os.path.relpath(path, ROOT)}`, the last run of `benches/cycles.py`; its commit is in the newest "
+        "section below that names it, the method and caveats in \"bake against Blender Cycles\"):",
         "",
         "| scene | bake to 2 % | Cycles to 2 % | ratio | bake to 1 % | Cycles to 1 % | ratio |",
         "|---|---|---|---|---|---|---|",
