@@ -11,7 +11,7 @@ and adapter it ran on.
 --env-dir names the real captured HDRIs (default ../shared/env); fixtures'
 own sky_sun is always used. --table4-sizes picks Table 4's atlas sizes
 (default 256; 512 and 1024 take far longer without a GPU). Takes about
-twenty minutes on a 2-core machine without a GPU.
+eleven minutes on a 2-core machine without a GPU.
 """
 
 import argparse

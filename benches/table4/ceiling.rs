@@ -15,11 +15,11 @@ use std::time::Instant;
 use anyhow::Result;
 use bake::environment::{Light, LightSet};
 use bake::gpu::{Gpu, read_buffer};
-use bake::solve::direct::DirectPass;
+use bake::solve::direct::{DirectPass, MAX_BATCH, light_records, power_per_ray};
 use bake::{Scene, Texel};
 
-/// Lights per dispatch, as the direct pass's batches (`direct::MAX_BATCH`).
-const BATCH: usize = 1024;
+/// Lights per dispatch, as the direct pass's largest batches.
+const BATCH: usize = MAX_BATCH as usize;
 /// Rays per point and dispatch: well under the CPU driver's 65,535 loop turns per invocation.
 const RAYS_PER_DISPATCH: u32 = 16;
 
@@ -67,8 +67,8 @@ struct BareParams {
 /// Times the real direct pass at `points`, then both bare kernels.
 pub fn measure(gpu: &Gpu, scene: &Scene, points: &[Texel], lights: &LightSet) -> Result<Ceiling> {
     let pass = DirectPass::new(gpu, scene)?;
-    let gathered = pass.gather(points, lights, BATCH as u32, &mut |_, _| {})?;
-    let kernels = Kernels::new(gpu, scene, points)?;
+    let gathered = pass.gather(points, lights, MAX_BATCH, &mut |_, _| {})?;
+    let kernels = Kernels::new(gpu, scene, points, power_per_ray(lights))?;
     let light_loop = lights.lights.chunks(BATCH).map(|batch| kernels.light_loop(batch)).sum::<Result<f64>>()?;
     // As many rays a point as the pass cast on average.
     let per_point = (gathered.rays as f64 / points.len().max(1) as f64).round().max(1.0) as u32;
@@ -100,10 +100,12 @@ struct Kernels<'a> {
     sums: wgpu::Buffer,
     counts: wgpu::Buffer,
     point_count: u32,
+    /// The direct pass's `power_per_ray` for the light set (its records hold each light's rays).
+    power_per_ray: f32,
 }
 
 impl<'a> Kernels<'a> {
-    fn new(gpu: &'a Gpu, scene: &Scene, points: &[Texel]) -> Result<Kernels<'a>> {
+    fn new(gpu: &'a Gpu, scene: &Scene, points: &[Texel], power_per_ray: f32) -> Result<Kernels<'a>> {
         let gpu_scene = bake::trace::GpuScene::new(gpu, scene)?;
         let scene_layout = bake::trace::GpuScene::bind_group_layout(gpu);
         let compute = wgpu::ShaderStages::COMPUTE;
@@ -159,6 +161,7 @@ impl<'a> Kernels<'a> {
                 wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
             ),
             point_count: points.len() as u32,
+            power_per_ray,
         })
     }
 
@@ -175,7 +178,7 @@ impl<'a> Kernels<'a> {
             _pad: [0; 3],
         };
         let params = gpu.uniform_buffer("ceiling params", &params);
-        let records = gpu.uniform_buffer("ceiling lights", &light_records(lights));
+        let records = gpu.uniform_buffer("ceiling lights", &light_records(lights, self.power_per_ray));
         let buffers = [&params, &records, &self.points, &self.sums, &self.counts];
         let group = bake::gpu::bind_buffers(gpu, "ceiling", &self.layout, &buffers);
         gpu.wait()?;
@@ -214,19 +217,4 @@ impl<'a> Kernels<'a> {
         let counts: Vec<u32> = read_buffer(self.gpu, &self.counts, 3)?;
         Ok((counts[0] as u64, counts[2] as u64, seconds))
     }
-}
-
-/// The direct pass's light records (`direct::light_records`) as far as the
-/// bare kernels read them: direction and cos α, L·Ω and Ω.
-fn light_records(lights: &[Light]) -> [[f32; 4]; 3 * BATCH] {
-    let mut records = [[0.0; 4]; 3 * BATCH];
-    for (slot, light) in records.chunks_exact_mut(3).zip(lights) {
-        let omega = light.solid_angle;
-        let cos_alpha = 1.0 - (omega / std::f32::consts::TAU).min(2.0);
-        let [x, y, z] = light.direction;
-        let power = light.radiance.map(|c| c * omega);
-        slot[0] = [x, y, z, cos_alpha];
-        slot[1] = [power[0], power[1], power[2], omega];
-    }
-    records
 }

@@ -233,7 +233,7 @@ struct PointList {
 /// Three records per light: its direction and the cosine of its cone's
 /// half-angle (the cone of its solid angle); L·Ω (rgb) and Ω; the sine of
 /// the half-angle and the rays it gets where something may block it.
-fn light_records(lights: &[Light], power_per_ray: f32) -> [[f32; 4]; 3 * MAX_BATCH as usize] {
+pub fn light_records(lights: &[Light], power_per_ray: f32) -> [[f32; 4]; 3 * MAX_BATCH as usize] {
     let mut records = [[0.0; 4]; 3 * MAX_BATCH as usize];
     for (slot, light) in records.chunks_exact_mut(3).zip(lights) {
         let omega = light.solid_angle;
@@ -370,7 +370,7 @@ impl Gathered {
 }
 
 /// Luminance of L·Ω that earns a light one ray (`RAYS`).
-fn power_per_ray(lights: &LightSet) -> f32 {
+pub fn power_per_ray(lights: &LightSet) -> f32 {
     let total: f64 = lights.lights.iter().map(|l| luminance(l.radiance.map(|c| c * l.solid_angle))).sum();
     (total / RAYS as f64).max(f64::MIN_POSITIVE) as f32
 }
