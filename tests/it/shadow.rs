@@ -9,6 +9,7 @@ use crate::common;
 use bake::environment::{EnvironmentMap, Light, LightMode};
 use bake::fixtures::{MeshData, Placement, SceneBuilder};
 use bake::gpu::Gpu;
+use bake::texelize::Texel;
 use glam::{Quat, Vec3, Vec3Swizzles};
 
 #[test]
@@ -114,9 +115,8 @@ fn hard_shadow_edge_is_box_filtered(sun_parts: usize) {
         let mut options = common::options(128);
         options.solve.supersample = supersample;
         let baked = common::bake(&gpu, &builder, &lights, &options);
-        let width = baked.texels.width as i64;
         let ground = common::values_of(&baked, 0);
-        let at: std::collections::HashMap<u32, Vec3> = ground.iter().map(|(t, _)| (t.index, t.position())).collect();
+        let neighbours = neighbours_of(&ground, baked.texels.width);
         let open =
             ground.iter().filter(|(t, _)| local(t.position()).xz().length() > 2.5).map(|v| v.1).fold(0.0, f32::max);
         let (mut sum, mut count) = (0.0, 0);
@@ -126,8 +126,7 @@ fn hard_shadow_edge_is_box_filtered(sun_parts: usize) {
             if q.min_element() > side / 2.0 - 0.3 {
                 continue;
             }
-            let near = |d: i64| at.get(&((t.index as i64 + d) as u32)).copied();
-            let (Some(r), Some(l), Some(u), Some(d)) = (near(1), near(-1), near(width), near(-width)) else {
+            let Some([r, l, u, d]) = neighbours(t) else {
                 continue;
             };
             let share = lit_share(t.position(), (r - l) / 2.0, (u - d) / 2.0, lit);
@@ -375,12 +374,10 @@ fn texels_of_a_concave_surface_beside_a_shadow_edge_keep_their_light() {
         q.dot(sun_direction) < -0.05 && (q - 2.0 * q.dot(sun_direction) * sun_direction).y > 0.02
     };
     let texels = common::values_of(&baked, 0);
-    let at: std::collections::HashMap<u32, Vec3> = texels.iter().map(|(t, _)| (t.index, t.position())).collect();
-    let width = baked.texels.width as i64;
+    let neighbours = neighbours_of(&texels, baked.texels.width);
     let (mut ratios, mut edge_texels) = (Vec::new(), 0);
     for (t, value) in &texels {
-        let near = |d: i64| at.get(&((t.index as i64 + d) as u32)).copied();
-        let (Some(r), Some(l), Some(u), Some(d)) = (near(1), near(-1), near(width), near(-width)) else {
+        let Some([r, l, u, d]) = neighbours(t) else {
             continue;
         };
         let (du, dv) = ((r - l) / 4.0, (u - d) / 4.0);
@@ -403,4 +400,16 @@ fn texels_of_a_concave_surface_beside_a_shadow_edge_keep_their_light() {
     );
     assert!(edge_texels >= 20, "only {edge_texels} wholly lit texels beside the edge");
     assert!(worst < 0.05, "a wholly lit texel is {worst:.3} off the light at its centre");
+}
+
+/// For a texel of `texels`, the positions of its atlas neighbours: right,
+/// left, in the next row and in the row before (`width` texels a row),
+/// where all four are among `texels`.
+fn neighbours_of(texels: &[(Texel, f32)], width: u32) -> impl Fn(&Texel) -> Option<[Vec3; 4]> {
+    let at: std::collections::HashMap<u32, Vec3> = texels.iter().map(|(t, _)| (t.index, t.position())).collect();
+    let width = width as i64;
+    move |t| {
+        let near = |d: i64| at.get(&((t.index as i64 + d) as u32)).copied();
+        Some([near(1)?, near(-1)?, near(width)?, near(-width)?])
+    }
 }
