@@ -22,9 +22,9 @@
 @group(0) @binding(1) var<uniform> lights: array<vec4f, 3072>;
 @group(0) @binding(2) var<storage, read> points: array<Texel>;
 @group(0) @binding(3) var<storage, read> occluders: array<Occluders>;
-// Irradiance E (rgb) and coverage (blocked and total Ω cos θ over the
-// lights in front of the face), two records a point, each point's batch
-// added in place.
+// Irradiance E (rgb); coverage (blocked and total Ω cos θ over the
+// lights in front of the face) and the luminance of the irradiance other
+// surfaces block: two records a point, each point's batch added in place.
 @group(0) @binding(4) var<storage, read_write> totals: array<vec4f>;
 // With `params.listed`, the points to gather (else every point in turn).
 @group(0) @binding(5) var<storage, read> point_list: array<u32>;
@@ -202,6 +202,7 @@ struct Sums {
     irradiance: vec3f,
     blocked: f32,
     facing: f32,
+    shadowed: f32,  // luminance of the irradiance other surfaces block
 }
 
 // A light as one turn of a gathering loop reads it.
@@ -232,15 +233,35 @@ fn light_at(k: u32, p: Texel) -> Light {
 // whole cone gives n·V/Ω = (1 + cos α)/2 · cos θ (`cap_factor` without its
 // arcs). Coverage as in `add_light`: the cone is in front of the face.
 fn add_plain_light(sums: ptr<function, Sums>, power: vec3f, ca: f32, omega: f32, cos_n: f32, open: f32) {
-    (*sums).irradiance += power * (0.5 + 0.5 * ca) * max(cos_n, 0.0) * open;
+    (*sums).irradiance += plain_light(power, ca, cos_n) * open;
     let weight = omega * max(cos_n, 0.0);
     (*sums).facing += weight;
     (*sums).blocked += weight * (1.0 - open);
 }
 
+// The irradiance of a whole cone above the face.
+fn plain_light(power: vec3f, ca: f32, cos_n: f32) -> vec3f {
+    return power * (0.5 + 0.5 * ca) * max(cos_n, 0.0);
+}
+
+// `add_plain_light` for a light that rays found `open`: what they found
+// blocked is counted too. (Apart: the loop over lights nothing blocks
+// would pay for it at every pair.)
+fn add_plain_light_seen(sums: ptr<function, Sums>, l: Light, open: f32) {
+    add_plain_light(sums, l.power, l.ca, l.omega, l.cos_n, open);
+    add_shadowed(sums, plain_light(l.power, l.ca, l.cos_n), open);
+}
+
+// Counts the share of `whole` irradiance that is not `open`, by luminance.
+fn add_shadowed(sums: ptr<function, Sums>, whole: vec3f, open: f32) {
+    (*sums).shadowed += dot(whole, vec3f(0.2126, 0.7152, 0.0722)) * (1.0 - open);
+}
+
 // Adds light `l`, of which `open` of the cone's part above the face is open.
 fn add_light(sums: ptr<function, Sums>, l: Light, open: f32) {
-    (*sums).irradiance += l.power * cap_factor(l) * open;
+    let whole = l.power * cap_factor(l);
+    (*sums).irradiance += whole * open;
+    add_shadowed(sums, whole, open);
     // Coverage counts only lights in front of the face, and only what other
     // surfaces block of them: the point's own surface is no other surface seen.
     let weight = select(0.0, l.omega * max(l.cos_n, 0.0), l.cos_f > 0.0);
@@ -386,7 +407,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let p = points[i];
     let o = ray_origin(p.position, p.face_normal);
     let b = blockers_of(i, o);
-    var sums = Sums(vec3f(0.0), 0.0, 0.0);
+    var sums = Sums(vec3f(0.0), 0.0, 0.0, 0.0);
     // Sorting: a light wholly above the face that no blocker can reach is
     // gathered here; the others go to the loops below.
     var crossing: array<u32, WORDS>;
@@ -455,7 +476,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             break;
         }
         let l = light_at(light, p);
-        add_plain_light(&sums, l.power, l.ca, l.omega, l.cos_n, polygon_visibility(l, light, i, p, o, b));
+        add_plain_light_seen(&sums, l, polygon_visibility(l, light, i, p, o, b));
     }
     // Lights anything may block.
     bits = bit_walk(walk_words);
@@ -466,7 +487,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             break;
         }
         let l = light_at(light, p);
-        add_plain_light(&sums, l.power, l.ca, l.omega, l.cos_n, cone_visibility(l, light, i, p, o, b));
+        add_plain_light_seen(&sums, l, cone_visibility(l, light, i, p, o, b));
     }
     // Lights something may block that cross the face's horizon (few: the
     // polygons' lights among them walk too, finding nothing in the cones).
@@ -493,5 +514,5 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         atomicAdd(&status[2], trace_visits);
     }
     totals[2u * i] += vec4f(sums.irradiance, 0.0);
-    totals[2u * i + 1u] += vec4f(sums.blocked, sums.facing, 0.0, 0.0);
+    totals[2u * i + 1u] += vec4f(sums.blocked, sums.facing, sums.shadowed, 0.0);
 }

@@ -92,6 +92,9 @@ pub struct Direct {
     /// Share of the texel's hemisphere (cosine-weighted) that scene geometry
     /// covers, as seen along the light directions: where its reflected light goes.
     pub coverage: Vec<f32>,
+    /// Luminance of the irradiance other surfaces block: where it bends, a
+    /// shadow's edge crosses the texel (`supersample`).
+    pub shadowed: Vec<f32>,
     pub stats: DirectStats,
 }
 
@@ -327,6 +330,7 @@ impl<'a> DirectPass<'a> {
         Ok(Gathered {
             irradiance: sums.chunks_exact(2).map(|s| [s[0][0], s[0][1], s[0][2]]).collect(),
             covered: sums.chunks_exact(2).map(|s| [s[1][0], s[1][1]]).collect(),
+            shadowed: sums.chunks_exact(2).map(|s| s[1][2]).collect(),
             batches: count,
             rays: batches.rays,
             visits: batches.visits,
@@ -341,6 +345,8 @@ pub struct Gathered {
     pub irradiance: Vec<[f32; 3]>,
     /// Ω cos θ over the lights in front of the face: blocked, and in all.
     pub covered: Vec<[f32; 2]>,
+    /// Luminance of the irradiance other surfaces block.
+    pub shadowed: Vec<f32>,
     pub batches: usize,
     pub rays: u64,
     /// Nodes and triangles the rays' walks visited (read by the benchmarks only).
@@ -365,6 +371,7 @@ impl Gathered {
             stats,
             coverage: self.covered.iter().map(|c| if c[1] > 0.0 { c[0] / c[1] } else { 0.0 }).collect(),
             irradiance: self.irradiance,
+            shadowed: self.shadowed,
         }
     }
 }

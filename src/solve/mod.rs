@@ -377,13 +377,9 @@ fn direct_light_with(
         .transpose()?;
     let punctual_at_texels = punctual.map(|p| p.irradiance(&texels.texels));
     let plan = if options.supersample {
-        // The light of both kinds together flags the texels on a sharp change.
-        let mut flagging =
-            direct.as_ref().map_or_else(|| vec![[0.0; 3]; texels.texels.len()], |d| d.irradiance.clone());
-        for (sum, e) in flagging.iter_mut().zip(punctual_at_texels.iter().flatten()) {
-            (0..3).for_each(|c| sum[c] += e[c]);
-        }
-        supersample::plan(occluders, texels, &flagging)
+        let environment = direct.as_ref().map(|d| (&d.irradiance[..], &d.shadowed[..]));
+        let edges = supersample::Edges::new(texels.texels.len(), environment, punctual_at_texels.as_deref());
+        supersample::plan(occluders, texels, &edges)
     } else {
         None
     };

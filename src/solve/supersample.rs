@@ -3,8 +3,10 @@
 //! light at its centre, so a hard edge is anti-aliased instead of
 //! stair-stepped (issue 6, "a texel's value represents its footprint").
 //!
-//! After the direct pass, a texel is flagged when its direct irradiance
-//! bends sharply across it (second difference over `EDGE_CONTRAST`), and it
+//! After the direct pass, a texel is flagged when the direct light other
+//! surfaces block of it bends sharply across it (second difference over
+//! `EDGE_CONTRAST` of the light there; a punctual light's irradiance counts
+//! whole), and it
 //! lies inside its chart (all eight neighbours are covered texels of the same
 //! chart, facing within `SAME_SURFACE_COS`): its footprint is then all
 //! surface, mapped to the world by the central differences of its
@@ -55,11 +57,11 @@ pub struct Plan {
     pub texels: usize,
 }
 
-/// Flags the texels on a sharp change of `irradiance` and places their
-/// sub-samples. `None` when no texel needs them.
-pub fn plan(occluders: &Surfaces, texels: &TexelSet, irradiance: &[[f32; 3]]) -> Option<Plan> {
+/// Flags the texels across which a shadow's edge bends the light and
+/// places their sub-samples. `None` when no texel needs them.
+pub fn plan(occluders: &Surfaces, texels: &TexelSet, light: &Edges) -> Option<Plan> {
     let atlas = Atlas { texels };
-    let flagged = flag(&atlas, irradiance);
+    let flagged = flag(&atlas, light);
     if flagged.is_empty() {
         return None;
     }
@@ -100,18 +102,59 @@ impl Atlas<'_> {
     }
 }
 
-/// The texels whose `irradiance` bends sharply across them, in order.
-fn flag(atlas: &Atlas, irradiance: &[[f32; 3]]) -> Vec<usize> {
+/// What flags a texel, per texel (luminance): all the direct light that
+/// reaches it or would but for shadows, and the parts of it whose bends
+/// mark a shadow's edge.
+pub struct Edges {
+    light: Vec<f64>,
+    /// The environment's light that other surfaces block, and the
+    /// punctual lights' irradiance (their shadows are exact, taken whole).
+    shadows: Vec<Vec<f64>>,
+}
+
+impl Edges {
+    /// From the environment's irradiance and the luminance of its
+    /// irradiance other surfaces block, and the punctual lights' irradiance.
+    pub fn new(count: usize, environment: Option<(&[[f32; 3]], &[f32])>, punctual: Option<&[[f32; 3]]>) -> Edges {
+        let mut light = vec![0.0; count];
+        let mut shadows = Vec::new();
+        if let Some((irradiance, shadowed)) = environment {
+            for ((sum, &e), &s) in light.iter_mut().zip(irradiance).zip(shadowed) {
+                *sum += luminance(e) + s as f64;
+            }
+            shadows.push(shadowed.iter().map(|&s| s as f64).collect());
+        }
+        if let Some(irradiance) = punctual {
+            let level: Vec<f64> = irradiance.iter().map(|&e| luminance(e)).collect();
+            light.iter_mut().zip(&level).for_each(|(sum, l)| *sum += l);
+            shadows.push(level);
+        }
+        Edges { light, shadows }
+    }
+
+    /// Whether some part bends across texel `b` by more than
+    /// `EDGE_CONTRAST` of the light at `a`, `b` or `c`, its neighbours on
+    /// either side along a row or a column.
+    fn bend(&self, a: usize, b: usize, c: usize, peak: f64) -> bool {
+        let top = self.light[a].max(self.light[b]).max(self.light[c]);
+        // Far below the brightest texel, a difference is invisible.
+        top > 1e-6 * peak && self.shadows.iter().any(|s| (s[a] - 2.0 * s[b] + s[c]).abs() > EDGE_CONTRAST * top)
+    }
+}
+
+/// The texels a shadow's edge crosses, in order.
+fn flag(atlas: &Atlas, edges: &Edges) -> Vec<usize> {
     let texels = atlas.texels;
-    let level: Vec<f64> = irradiance.iter().map(|&e| luminance(e)).collect();
-    let peak = level.iter().cloned().fold(0.0f64, f64::max);
+    let peak = edges.light.iter().cloned().fold(0.0f64, f64::max);
     if peak <= 0.0 {
         return Vec::new();
     }
     // Bent, not sloped: a texel's mean over its square is its centre's value
     // wherever the light changes linearly across it (a penumbra several
     // texels wide), so only a kink or a step (second difference) needs
-    // sub-samples.
+    // sub-samples. And in the shadows only: sub-samples take the texel's
+    // own normal, so light that bends with a curved surface's normal (a
+    // statue's folds) they would gather at the centre's value again.
     (0..texels.texels.len())
         .into_par_iter()
         .filter(|&i| {
@@ -121,10 +164,7 @@ fn flag(atlas: &Atlas, irradiance: &[[f32; 3]]) -> Vec<usize> {
                     let (Some(before), Some(after)) = (atlas.at(t, -dx, -dy), atlas.at(t, dx, dy)) else {
                         return false;
                     };
-                    let (a, b, c) = (level[before], level[i], level[after]);
-                    let top = a.max(b).max(c);
-                    // Far below the brightest texel, a difference is invisible.
-                    top > 1e-6 * peak && (a - 2.0 * b + c).abs() > EDGE_CONTRAST * top
+                    edges.bend(before, i, after, peak)
                 })
         })
         .collect()
@@ -196,5 +236,35 @@ pub fn fold(plan: &Plan, gathered: &[[f32; 3]], irradiance: &mut [[f32; 3]]) {
         first += run.len();
         let mean = |c: usize| (samples.iter().map(|e| e[c] as f64).sum::<f64>() / samples.len() as f64) as f32;
         irradiance[run[0] as usize] = [mean(0), mean(1), mean(2)];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One atlas row of `n` texels with area.
+    fn row(n: u32) -> TexelSet {
+        let texels = (0..n).map(|index| Texel { index, area: 1.0, ..Default::default() }).collect();
+        TexelSet { width: n, height: 1, texels, tint: Vec::new() }
+    }
+
+    #[test]
+    fn a_shadow_s_edge_flags_the_texels_it_bends_across_and_a_curved_surface_s_light_does_not() {
+        let texels = row(8);
+        let atlas = Atlas { texels: &texels };
+        // Light falling off with a folded surface's normal, nothing blocked:
+        // the second difference at texel 3 is 0.6 of the light there.
+        let folded = [1.0, 1.0, 1.0, 0.4, 1.0, 1.0, 1.0, 1.0];
+        let unshadowed = Edges::new(8, Some((&folded.map(|l| [l; 3]), &[0.0; 8])), None);
+        assert!(flag(&atlas, &unshadowed).is_empty());
+        // A hard shadow from texel 4 on: its light blocked there, bent at 3 and 4.
+        let lit = [1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0];
+        let blocked = lit.map(|l| 1.0 - l);
+        let shadowed = Edges::new(8, Some((&lit.map(|l| [l; 3]), &blocked)), None);
+        assert_eq!(flag(&atlas, &shadowed), vec![3, 4]);
+        // A punctual light's irradiance counts whole.
+        let punctual = Edges::new(8, None, Some(&folded.map(|l| [l; 3])));
+        assert_eq!(flag(&atlas, &punctual), vec![2, 3, 4]);
     }
 }
