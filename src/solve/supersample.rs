@@ -6,11 +6,10 @@
 //! After the direct pass, a texel is flagged when the direct light other
 //! surfaces block of it bends sharply across it (second difference over
 //! `EDGE_CONTRAST` of the light there; a punctual light's irradiance counts
-//! whole), and it
-//! lies inside its chart (all eight neighbours are covered texels of the same
-//! chart, facing within `SAME_SURFACE_COS`): its footprint is then all
-//! surface, mapped to the world by the central differences of its
-//! neighbours' positions. Eight sub-samples in the footprint (the D3D
+//! whole), and it lies inside its chart (all eight neighbours are covered
+//! texels of the same chart, facing within `SAME_SURFACE_COS`): its
+//! footprint is then all surface, mapped to the world by the central
+//! differences of its neighbours' positions. Eight sub-samples in the footprint (the D3D
 //! standard 8× pattern) are gathered by a second direct pass. A sub-sample
 //! that the texel's centre cannot reach along the surface (a wall standing
 //! on the floor between them) is left out: the texel stands for the part of
@@ -59,9 +58,9 @@ pub struct Plan {
 
 /// Flags the texels across which a shadow's edge bends the light and
 /// places their sub-samples. `None` when no texel needs them.
-pub fn plan(occluders: &Surfaces, texels: &TexelSet, light: &Edges) -> Option<Plan> {
+pub fn plan(occluders: &Surfaces, texels: &TexelSet, edges: &Edges) -> Option<Plan> {
     let atlas = Atlas { texels };
-    let flagged = flag(&atlas, light);
+    let flagged = flag(&atlas, edges);
     if flagged.is_empty() {
         return None;
     }
