@@ -7,16 +7,16 @@
 //! surfaces block of it bends sharply across it (second difference over
 //! `EDGE_CONTRAST` of the light there; a punctual light's irradiance counts
 //! whole), and it lies inside its chart (all eight neighbours are covered
-//! texels of the same chart, facing within `SAME_SURFACE_COS`): its
-//! footprint is then all surface, mapped to the world by the central
-//! differences of its neighbours' positions. Eight sub-samples in the footprint (the D3D
+//! texels of the same chart, facing within `SAME_SURFACE_COS`): its footprint
+//! is then all surface, mapped to the world by the central differences of its
+//! neighbours' positions. Eight sub-samples in the footprint (the D3D
 //! standard 8× pattern) are gathered by a second direct pass. A sub-sample
-//! that the texel's centre cannot reach along the surface (a wall standing
-//! on the floor between them) is left out: the texel stands for the part of
-//! its footprint a viewer can see, and light from behind the wall must not
-//! leak in. Where a concave surface rises above the footprint's flat plane
-//! (past a crease), a sub-sample is moved up onto it (`on_surface`): on the
-//! plane it would lie behind the surface and cast its rays from there.
+//! that the texel's centre cannot reach along the surface (a wall standing on
+//! the floor between them) is left out: the texel stands for the part of its
+//! footprint a viewer can see, and light from behind the wall must not leak
+//! in. Where a concave surface rises above the footprint's flat plane (past a
+//! crease), a sub-sample is moved up onto it (`on_surface`): on the plane it
+//! would lie behind the surface and cast its rays from there.
 //!
 //! The direct pass gathers the texels first, which flags them, then the
 //! sub-samples alone.
