@@ -33,6 +33,9 @@
 // members (each patch's are sorted by sub-cell), the next entry its end
 // but for the last sub-cell, whose run ends at the patch's end.
 @group(0) @binding(9) var<storage, read> cell_starts: array<u32>;
+// Per patch: the light per unit albedo it would have shot ahead in the
+// last batch (solve_select.wgsl).
+@group(0) @binding(10) var<storage, read> patch_overshoot: array<vec4f>;
 
 // Receiver texel `i`, with the share of its area that bounces light
 // (src/solve/overlaps.rs): its unshot light counts for that share of its area.
@@ -58,6 +61,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     var received = 0.0;
     var weighted = vec3f(0.0);
     var weight = 0.0;
+    let ahead = patch_overshoot[j].rgb;
     for (var m = own.first; m < own.first + own.count; m++) {
         let i = members[m];
         let u = unshot[i];
@@ -65,7 +69,9 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         let area = r.texel.area * r.share;
         power += u.rgb * area;
         received += u.w;
-        let w = luminance(u.rgb) * area;
+        // Weighed by what it would shoot: light owed and light shot ahead
+        // cancel where the ambient estimate was right.
+        let w = abs(luminance(u.rgb + r.texel.albedo * ahead)) * area;
         weighted += w * r.texel.position;
         weight += w;
     }
@@ -110,7 +116,7 @@ fn shooter_cells_of_batch(@builtin(workgroup_id) group: vec3<u32>, @builtin(loca
         let texel = r.texel;
         // Light by the bouncing area, over the whole area: a sub-cell
         // where two surfaces coincide has half the radiance of each.
-        power += unshot[i].rgb * texel.area * r.share;
+        power += (unshot[i].rgb + texel.albedo * s.overshoot) * texel.area * r.share;
         area += texel.area;
         centroid += texel.position * texel.area;
         normal += texel.normal * texel.area;

@@ -24,6 +24,11 @@
 @group(0) @binding(7) var<storage, read> patch_coverage: array<f32>;
 // The batch's hemicube faces, five per slot, for the hemicube pass.
 @group(0) @binding(8) var<storage, read_write> hemicube_faces: array<HemicubeFace>;
+// Per patch: Σ albedo·A over its texels (rgb).
+@group(0) @binding(9) var<storage, read> patch_albedo: array<vec4f>;
+// Per patch: the light per unit albedo it would shoot ahead now (for the
+// next batch's origins, solve_patch_power.wgsl).
+@group(0) @binding(10) var<storage, read_write> patch_overshoot: array<vec4f>;
 
 const THREADS: u32 = 64u;
 const GROUPS: u32 = 8u;
@@ -37,21 +42,25 @@ var<workgroup> group_index: array<u32, GROUPS>;
 var<workgroup> sum_unshot: array<vec3f, THREADS>;
 var<workgroup> sum_received: array<f32, THREADS>;
 var<workgroup> sum_landing: array<f32, THREADS>;
+var<workgroup> sum_unsettled: array<f32, THREADS>;
 
 @compute @workgroup_size(THREADS)
 fn main(@builtin(local_invocation_index) lid: u32) {
     var unshot = vec3f(0.0);
+    var unsettled = 0.0;
     var received = 0.0;
     var landing = 0.0;
     for (var j = lid; j < params.patch_count; j += THREADS) {
         chosen[j] = 0u;
         unshot += patch_power[j].rgb;
         received += patch_power[j].w;
-        landing += luminance(patch_power[j].rgb) * patch_coverage[j];
+        unsettled += abs(luminance(patch_power[j].rgb));
+        landing += abs(luminance(patch_power[j].rgb)) * patch_coverage[j];
     }
     sum_unshot[lid] = unshot;
     sum_received[lid] = received;
     sum_landing[lid] = landing;
+    sum_unsettled[lid] = unsettled;
     storageBarrier();
     workgroupBarrier();
     for (var stride = THREADS / 2u; stride > 0u; stride /= 2u) {
@@ -59,10 +68,18 @@ fn main(@builtin(local_invocation_index) lid: u32) {
             sum_unshot[lid] += sum_unshot[lid + stride];
             sum_received[lid] += sum_received[lid + stride];
             sum_landing[lid] += sum_landing[lid + stride];
+            sum_unsettled[lid] += sum_unsettled[lid + stride];
         }
         workgroupBarrier();
     }
 
+    // What a surface of full coverage will still receive (L_lm): each
+    // patch shoots its share of that too, ahead of receiving it, and is
+    // chosen by what it would shoot.
+    ambient = max(sum_unshot[0] * params.overshoot.rgb, vec3f(0.0));
+    for (var j = lid; j < params.patch_count; j += THREADS) {
+        patch_overshoot[j] = vec4f(ambient * patch_coverage[j], 0.0);
+    }
     var shot = vec3f(0.0);
     var count = 0u;
     own_best(lid);
@@ -97,7 +114,8 @@ fn main(@builtin(local_invocation_index) lid: u32) {
             shooter.patch_index = NO_TRIANGLE;
             if (shoots) {
                 let chosen_patch = patches[winner];
-                let power = patch_power[winner].rgb;
+                shooter.overshoot = ambient * patch_coverage[winner];
+                let power = to_shoot(winner);
                 shooter.position = patch_origin[winner].xyz;
                 shooter.area = chosen_patch.area;
                 shooter.normal = chosen_patch.normal;
@@ -134,9 +152,19 @@ fn main(@builtin(local_invocation_index) lid: u32) {
         stats.unshot = vec4f(sum_unshot[0], luminance(sum_unshot[0]));
         stats.received = vec4f(0.0, 0.0, 0.0, sum_received[0]);
         stats.landing = sum_landing[0];
+        stats.unsettled = sum_unsettled[0];
         stats.shot = vec4f(shot, luminance(shot));
         stats.shooters = count;
     }
+}
+
+// The ambient light still to come (L_lm) at full coverage, this batch.
+var<private> ambient: vec3f;
+
+// What patch `j` shoots if chosen (Σ ΔL·A, rgb): its unshot light and,
+// ahead, its share of the ambient light still to come.
+fn to_shoot(j: u32) -> vec3f {
+    return patch_power[j].rgb + patch_albedo[j].rgb * ambient * patch_coverage[j];
 }
 
 // Whether a patch of power `p` and index `i` goes before the best so far:
@@ -152,7 +180,7 @@ fn own_best(lid: u32) {
     var power = 0.0;
     var index = NO_TRIANGLE;
     for (var j = lid; j < params.patch_count; j += THREADS) {
-        let p = luminance(patch_power[j].rgb);
+        let p = abs(luminance(to_shoot(j)));
         if (chosen[j] == 0u && p > power) {
             power = p;
             index = j;

@@ -350,7 +350,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     lightmap[i] += vec4f(gathered, 0.0);
     var remaining = unshot[i].rgb;
     if (shot) {
-        remaining = vec3f(0.0);
+        // What it shot ahead of receiving it is owed.
+        remaining = -texel.albedo * shooters.items[own_slot].overshoot;
     }
     unshot[i] = vec4f(remaining + texel.albedo * gathered, luminance(gathered) * texel.area * r.share);
     if (near_slots != 0u) {

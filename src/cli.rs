@@ -111,10 +111,10 @@ pub struct Args {
     #[arg(long)]
     pub no_punctual_lights: bool,
 
-    /// Stop bouncing light when the unshot power, each patch's weighted by how much of its hemisphere the scene
+    /// Stop bouncing light when the unshot power (and the power shot ahead and still owed), each patch's weighted by how much of its hemisphere the scene
     /// covers, falls below this fraction of the power put in, weighted the same way; the rest is added as an ambient
     /// term and reported
-    #[arg(long, value_name = "FRACTION", default_value_t = 0.01)]
+    #[arg(long, value_name = "FRACTION", default_value_t = 0.005)]
     pub tolerance: f64,
 
     /// Stop bouncing after this many patch shots [default: 64 per patch]
@@ -405,7 +405,7 @@ mod tests {
         assert_eq!(config.bake.export.format, Format::Glb);
         assert_eq!(config.bake.export.material, MaterialDefault::Preview);
         assert!(!config.bake.keep_uv1);
-        assert_eq!(config.bake.solve.bounce.tolerance, 0.01);
+        assert_eq!(config.bake.solve.bounce.tolerance, 0.005);
         assert_eq!(config.bake.solve.bounce.max_shots, None);
         assert_eq!(config.bake.solve.bounce.patches, 1024);
         assert_eq!(config.import.max_triangles, crate::limits::DEFAULT_MAX_TRIANGLES);

@@ -28,6 +28,10 @@ struct Shooter {
     rect_area: f32,
     half_v: vec3f,
     _pad: u32,
+    // Light it shoots ahead of receiving it, per unit albedo (L_lm, rgb):
+    // its texels are left this much times their albedo in debt.
+    overshoot: vec3f,
+    _pad2: u32,
 }
 
 // A receiver this close to a near shooter's plane, in receiver offsets
@@ -60,6 +64,9 @@ struct BounceParams {
     cell: u32,             // side of the atlas cell patches are cut from, texels
     in_plane: f32,         // a receiver this close to a shooter's plane lies in it, metres (rounding)
     receiver_row_shift: u32,  // receivers per row of the gather's receiver texture, as a shift
+    // The light a surface of full coverage will still receive (L_lm, rgb)
+    // per unit of unshot power Σ ΔL·A: the ambient term's factor.
+    overshoot: vec4f,
 }
 
 // A receiver texel as the gather reads it: its texel (position, area,
@@ -122,12 +129,12 @@ const SUB_CELL_ROWS: u32 = 3u;
 
 // Totals the select pass leaves for the CPU. Mirrors `bounce::Stats`.
 struct BounceStats {
-    unshot: vec4f,    // Σ ΔL·A over all patches, rgb; w = luminance
+    unshot: vec4f,    // Σ ΔL·A over all patches (owed light negative), rgb; w = luminance
     received: vec4f,  // Σ received L_lm·A in the last shoot pass; w = luminance
     shot: vec4f,      // Σ ΔL·A of the shooters chosen now; w = luminance
     shooters: u32,    // shooters with power in this batch
-    landing: f32,     // Σ luminance(ΔL·A) × the patch's coverage: the unshot power weighted by where it can land
-    _pad1: u32,
+    landing: f32,     // Σ |luminance(ΔL·A)| × the patch's coverage: the unsettled power weighted by where it can land
+    unsettled: f32,   // Σ |luminance(ΔL·A)|: light unshot or owed
     _pad2: u32,
 }
 

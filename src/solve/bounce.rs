@@ -35,6 +35,20 @@
 //! too dark). Scenes that catch little of what they reflect skip it
 //! (`NORMALIZE_FROM`).
 //!
+//! A patch shoots ahead (Feda & Purgathofer's overshooting): with its
+//! unshot light it shoots the light it will still receive by the ambient
+//! term's estimate (the batch's unshot power times the ambient factor,
+//! `overshoot_factor`, times its coverage and albedo), and its texels are
+//! left owing that much. Light received later pays the debt; a patch whose
+//! debt is the largest unsettled light shoots it back, negative. A closed
+//! room, which took about six shots a patch, settles in about two. Owed
+//! light counts as unsettled as unshot light does, so the stop and the
+//! patch chosen weigh its magnitude. Only a run that goes on until it
+//! settles shoots ahead: one a budget (`max_shots`, `max_seconds`) stops
+//! early leaves light owed where the ambient term, spread evenly, misses it
+//! (a uniform room at ρ = 0.95 stopped after 1,000 shots was 16 % off in
+//! places, against 4 % without).
+//!
 //! The light not yet shot is spread as an ambient term (Cohen et al.'s,
 //! scaled by the measured share of shot light the scene catches), and the
 //! report says how much it was: where the shots' light landed when the pass
@@ -78,7 +92,7 @@ const NORMALIZE_FROM: f64 = 0.2;
 /// Options of the bounce pass, with their defaults.
 #[derive(Clone, Debug)]
 pub struct BounceOptions {
-    /// Stop when the unshot power, each patch's weighted by the share of its
+    /// Stop when the unshot and owed power, each patch's weighted by the share of its
     /// texels' hemispheres the scene covers, falls below this fraction of the
     /// power put in, weighted the same way.
     pub tolerance: f64,
@@ -105,7 +119,7 @@ pub struct BounceOptions {
 impl Default for BounceOptions {
     fn default() -> Self {
         BounceOptions {
-            tolerance: 0.01,
+            tolerance: 0.005,
             max_shots: None,
             max_seconds: None,
             patches: 1024,
@@ -125,7 +139,7 @@ pub struct TracePoint {
     pub seconds: f64,
     /// Shots taken so far.
     pub shots: u64,
-    /// Unshot power over the power put in (luminance).
+    /// Unshot and owed power (their magnitudes) over the power put in (luminance).
     pub unshot_fraction: f64,
     /// Estimated relative error of the mean lightmap value: the ambient
     /// term for the unshot light over the mean gathered so far.
@@ -148,7 +162,7 @@ pub struct BounceStats {
     pub seconds: f64,
     /// Why it stopped.
     pub stopped_by: StopReason,
-    /// Unshot power over the power put in when it stopped.
+    /// Unshot and owed power (their magnitudes) over the power put in when it stopped.
     pub unshot_fraction: f64,
     /// Closure the ambient term used: the share of the unshot power that
     /// would land on the scene (`shot_closure` when the pass converged or
@@ -237,8 +251,14 @@ pub fn run(
         }
     };
     let sums = Sums::new(texels, lightmap, coverage);
-    let (params, dispatch) = resources::params(gpu, scene, texels, patches, texels_per_unit, options);
+    let (mut params, dispatch) = resources::params(gpu, scene, texels, patches, texels_per_unit, options);
+    // Shooting ahead pays only once the run settles: stopped early, the
+    // light still owed is where the ambient term, spread evenly, misses it.
+    if options.max_shots.is_none() && options.max_seconds.is_none() {
+        params.overshoot = overshoot_factor(&sums);
+    }
     let patch_coverage = patch_coverage(texels, patches, coverage);
+    let patch_albedo = patch_albedo(texels, patches);
     let order = SubCellOrder::new(patches, texels);
     let inputs = Inputs {
         texels: gpu_texels,
@@ -246,6 +266,7 @@ pub fn run(
         patches,
         order: &order,
         patch_coverage: &patch_coverage,
+        patch_albedo: &patch_albedo,
         unshot: &sums.unshot,
         lightmap,
     };
@@ -274,7 +295,10 @@ pub fn run(
     let ambient = ambient_term(last.unshot, closure, sums.mean_albedo, sums.total_area).map(|a| a as f32);
     let weights = ambient_weights(texels, &values, lightmap, coverage, converged);
     for ((out, v), w) in lightmap.iter_mut().zip(values).zip(weights) {
-        *out = [0, 1, 2].map(|c| v[c] + ambient[c] * w);
+        // Shots ahead of light not yet received and their take-backs reach a
+        // texel by slightly different paths (a patch's parts): one the light
+        // never reached can end a hair below 0.
+        *out = [0, 1, 2].map(|c| (v[c] + ambient[c] * w).max(0.0));
     }
     let unshot_fraction = tally.trace.last().map_or(0.0, |t| t.unshot_fraction);
     Ok(BounceStats {
@@ -432,7 +456,8 @@ impl Tally {
     ) -> Result<f64> {
         self.received_total += stats.received[3] as f64;
         self.gathered += stats.received[3] as f64;
-        let unshot_power = stats.unshot[3] as f64;
+        // Light owed counts as much as light unshot.
+        let unshot_power = stats.unsettled as f64;
         let unshot_fraction = if sums.power_in > 0.0 { unshot_power / sums.power_in } else { 0.0 };
         let closure = sums.initial_closure.unwrap_or_else(|| measured_closure(self.received_total, self.shot_total));
         let ambient = ambient_term(stats.unshot, closure, sums.mean_albedo, sums.total_area);
@@ -582,7 +607,8 @@ fn probe_error(gpu: &Gpu, lightmap: &wgpu::Buffer, probes: Option<&Probes>, ambi
 fn covered_share(texels: &TexelSet, unshot: &[[f32; 4]], coverage: &[f32]) -> f64 {
     let (mut covered, mut total) = (0.0f64, 0.0f64);
     for ((t, u), c) in texels.texels.iter().zip(unshot).zip(coverage) {
-        let power = luminance([u[0] as f64, u[1] as f64, u[2] as f64]) * t.area as f64;
+        // Light owed (shot ahead) weighs as much as light unshot.
+        let power = luminance([u[0] as f64, u[1] as f64, u[2] as f64]).abs() * t.area as f64;
         covered += power * *c as f64;
         total += power;
     }
@@ -612,6 +638,39 @@ fn patch_coverage(texels: &TexelSet, patches: &Patches, coverage: Option<&[f32]>
     // A buffer is never empty.
     per_patch.resize(per_patch.len().max(1), 0.0);
     per_patch
+}
+
+/// Each patch's Σ albedo·A over its texels (rgb; w 0).
+fn patch_albedo(texels: &TexelSet, patches: &Patches) -> Vec<[f32; 4]> {
+    let mut per_patch: Vec<[f32; 4]> = patches
+        .patches
+        .iter()
+        .map(|p| {
+            let members = &patches.members[p.first as usize..(p.first + p.count) as usize];
+            let mut sum = [0.0f64; 3];
+            for &i in members {
+                let t = &texels.texels[i as usize];
+                for (s, a) in sum.iter_mut().zip(t.albedo) {
+                    *s += a as f64 * t.area as f64;
+                }
+            }
+            [sum[0] as f32, sum[1] as f32, sum[2] as f32, 0.0]
+        })
+        .collect();
+    per_patch.resize(per_patch.len().max(1), [0.0; 4]);
+    per_patch
+}
+
+/// The light (L_lm) a surface the scene covers whole will still receive,
+/// per unit of unshot power: the ambient term's factor with the closure
+/// the direct pass measured (1 without one).
+fn overshoot_factor(sums: &Sums) -> [f32; 4] {
+    let closure = sums.initial_closure.unwrap_or(1.0);
+    let [r, g, b] = [0, 1, 2].map(|c| {
+        let reflect = (sums.mean_albedo[c] * closure).min(0.999);
+        (1.0 / (sums.total_area.max(1e-30) * (1.0 - reflect))) as f32
+    });
+    [r, g, b, 0.0]
 }
 
 /// The share of shot power that landed on the scene so far (1 before any

@@ -43,6 +43,7 @@ impl PatchPower {
             (7, &r.shooters),
             (8, &r.shooter_cells),
             (9, &cell_starts),
+            (10, &r.patch_overshoot),
         ];
         let mut entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
@@ -103,6 +104,8 @@ fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
             gpu::storage_entry(8, false, compute),
             // 9: where each patch's sub-cells start among its members
             gpu::storage_entry(9, true, compute),
+            // 10: per-patch light it would shoot ahead, per unit albedo
+            gpu::storage_entry(10, true, compute),
         ],
     })
 }

@@ -44,6 +44,10 @@ pub(super) struct BounceParams {
     in_plane: f32,
     /// Receivers a row of the gather's receiver texture holds, as a shift.
     pub(super) receiver_row_shift: u32,
+    _pad: [u32; 1],
+    /// The light a surface of full coverage will still receive per unit of
+    /// unshot power (rgb; w unused): what a shooter shoots ahead.
+    pub(super) overshoot: [f32; 4],
 }
 
 impl BounceParams {
@@ -99,6 +103,8 @@ pub(super) fn params(
         cell: patches.cell,
         in_plane: shooter_cull::in_plane(&texels.texels),
         receiver_row_shift: receiver_row_shift(texels.texels.len() as u32, gpu.limits.max_texture_dimension_2d),
+        _pad: [0; 1],
+        overshoot: [0.0; 4],
     };
     (params, Dispatch { shooter_count, face, tiles_per_row, tile_rows, groups, patch_groups })
 }
@@ -129,6 +135,8 @@ pub(super) struct Inputs<'a> {
     pub(super) order: &'a SubCellOrder,
     /// Per patch: the covered share of its texels' hemispheres.
     pub(super) patch_coverage: &'a [f32],
+    /// Per patch: Σ albedo·A over its texels (rgb, w 0).
+    pub(super) patch_albedo: &'a [[f32; 4]],
     pub(super) unshot: &'a [[f32; 4]],
     pub(super) lightmap: &'a [[f32; 3]],
 }
@@ -154,6 +162,9 @@ pub(super) struct Resources {
     /// Per patch: its unshot power and where it lies (power pass → select).
     pub(super) patch_power: wgpu::Buffer,
     pub(super) patch_origin: wgpu::Buffer,
+    /// Per patch: the light per unit albedo it would shoot ahead now (rgb),
+    /// written by the select pass, read by the next batch's power pass.
+    pub(super) patch_overshoot: wgpu::Buffer,
     /// Per patch: its slot + 1 once chosen in the batch (select → gather).
     pub(super) chosen: wgpu::Buffer,
     /// The batch's shooters (select → power pass, culls, gather).
@@ -186,6 +197,7 @@ impl Resources {
             lightmap: gpu.storage_buffer("solve_shoot lightmap", &lightmap4, wgpu::BufferUsages::COPY_SRC),
             patch_power: gpu.zeroed_storage_buffer::<[f32; 4]>("solve_patch_power power", patch_count, none),
             patch_origin: gpu.zeroed_storage_buffer::<[f32; 4]>("solve_patch_power origins", patch_count, none),
+            patch_overshoot: gpu.zeroed_storage_buffer::<[f32; 4]>("solve_select overshoot", patch_count, none),
             chosen: gpu.zeroed_storage_buffer::<u32>("solve_select chosen", patch_count, none),
             shooters: gpu.storage_buffer(
                 "solve_select shooters",
@@ -312,6 +324,7 @@ mod tests {
                 cell,
                 in_plane,
                 receiver_row_shift,
+                overshoot,
             }
         );
     }

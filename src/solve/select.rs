@@ -24,6 +24,8 @@ pub(super) struct Shooter {
     rect_area: f32,
     half_v: [f32; 3],
     _pad: u32,
+    overshoot: [f32; 3],
+    _pad2: u32,
 }
 
 /// Mirrors `BounceStats` in include/bounce.wgsl: the totals of a batch.
@@ -35,7 +37,9 @@ pub(super) struct GpuStats {
     pub(super) shot: [f32; 4],
     pub(super) shooters: u32,
     pub(super) landing: f32,
-    _pad: [u32; 2],
+    /// Σ |luminance(ΔL·A)| over the patches: light unshot or owed.
+    pub(super) unsettled: f32,
+    _pad: u32,
 }
 
 pub(super) struct Select {
@@ -49,6 +53,7 @@ impl Select {
     pub(super) fn new(gpu: &Gpu, r: &Resources, inputs: &Inputs) -> Select {
         let none = wgpu::BufferUsages::empty();
         let patch_coverage = gpu.storage_buffer("solve_select patch coverage", inputs.patch_coverage, none);
+        let patch_albedo = gpu.storage_buffer("solve_select patch albedo", inputs.patch_albedo, none);
         let stats = gpu.storage_buffer("solve_select stats", &[GpuStats::default()], wgpu::BufferUsages::COPY_SRC);
         let layout = bind_group_layout(gpu);
         let group = gpu::bind_buffers(
@@ -65,6 +70,8 @@ impl Select {
                 &r.patch_origin,
                 &patch_coverage,
                 &r.hemicube_faces,
+                &patch_albedo,
+                &r.patch_overshoot,
             ],
         );
         Select { pipeline: gpu.compute_pipeline(Shader::SolveSelect, "main", &[&layout]), group, stats }
@@ -106,6 +113,10 @@ fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
             gpu::storage_entry(7, true, compute),
             // 8: the shooters' hemicube faces (written)
             gpu::storage_entry(8, false, compute),
+            // 9: per-patch Σ albedo·A
+            gpu::storage_entry(9, true, compute),
+            // 10: per-patch light it would shoot ahead, per unit albedo (written)
+            gpu::storage_entry(10, false, compute),
         ],
     })
 }
@@ -131,9 +142,10 @@ mod tests {
                 lift,
                 half_u,
                 rect_area,
-                half_v
+                half_v,
+                overshoot
             }
         );
-        assert_mirrors!(Shader::SolveSelect, "BounceStats", GpuStats { unshot, received, shot, shooters, landing });
+        assert_mirrors!(Shader::SolveSelect, "BounceStats", GpuStats { unshot, received, shot, shooters, landing, unsettled });
     }
 }

@@ -837,3 +837,20 @@ fn a_ball_resting_on_the_floor_and_the_floor_under_it_return_no_more_light_than_
     eprintln!("brightest texel {most} (bound {bound}, ρ_max {rho})");
     assert!(most <= bound, "a texel takes in {most}, more than {bound}");
 }
+
+#[test]
+fn a_closed_room_settles_in_a_few_shots_a_patch_by_shooting_ahead() {
+    // Each shooter also shoots the light it will still receive by the
+    // ambient term's estimate: a white-ish closed room, which took ~37 shots
+    // a patch at ρ = 0.95 without it, settles in a few, as accurately.
+    let rho = 0.95f32;
+    let baked = bake_emitters(&six_wall_room([(rho, 1.0); 6]), 64, |_| {});
+    let bounce = baked.solution.bounce.as_ref().expect("the bounce pass ran");
+    assert_eq!(bounce.stopped_by, bake::solve::StopReason::Converged);
+    let per_patch = bounce.shots as f64 / bounce.patches as f64;
+    let expected = 1.0 / (1.0 - rho);
+    let worst = baked.solution.lightmap.iter().map(|v| (v[0] / expected - 1.0).abs()).fold(0.0f32, f32::max);
+    eprintln!("{} shots of {} patches ({per_patch:.1} a patch), worst texel {worst:.4}", bounce.shots, bounce.patches);
+    assert!(per_patch < 4.0, "{per_patch:.1} shots a patch");
+    assert!(worst < 0.03, "a texel is {worst:.4} off Le/(1 − ρ)");
+}
