@@ -47,7 +47,7 @@
 //! settles shoots ahead: one a budget (`max_shots`, `max_seconds`) stops
 //! early leaves light owed where the ambient term, spread evenly, misses it
 //! (a uniform room at ρ = 0.95 stopped after 1,000 shots was 16 % off in
-//! places, against 4 % without).
+//! places, against 4 % without, BENCHMARKS.md).
 //!
 //! The light not yet shot is spread as an ambient term (Cohen et al.'s,
 //! scaled by the measured share of shot light the scene catches), and the
