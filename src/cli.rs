@@ -111,9 +111,9 @@ pub struct Args {
     #[arg(long)]
     pub no_punctual_lights: bool,
 
-    /// Stop bouncing light when the unshot power (and the power shot ahead and still owed), each patch's weighted by how much of its hemisphere the scene
-    /// covers, falls below this fraction of the power put in, weighted the same way; the rest is added as an ambient
-    /// term and reported
+    /// Stop bouncing light when the unshot power (and the power shot ahead and still owed), each patch's weighted
+    /// by how much of its hemisphere the scene covers, falls below this fraction of the power put in, weighted the
+    /// same way; the rest is added as an ambient term and reported
     #[arg(long, value_name = "FRACTION", default_value_t = 0.005)]
     pub tolerance: f64,
 

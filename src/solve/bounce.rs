@@ -92,9 +92,9 @@ const NORMALIZE_FROM: f64 = 0.2;
 /// Options of the bounce pass, with their defaults.
 #[derive(Clone, Debug)]
 pub struct BounceOptions {
-    /// Stop when the unshot and owed power, each patch's weighted by the share of its
-    /// texels' hemispheres the scene covers, falls below this fraction of the
-    /// power put in, weighted the same way.
+    /// Stop when the unshot and owed power, each patch's weighted by the
+    /// share of its texels' hemispheres the scene covers, falls below this
+    /// fraction of the power put in, weighted the same way.
     pub tolerance: f64,
     /// Stop after this many shots (`None`: 64 per patch, so that even a
     /// near-white room ends; the ambient term covers what is left).
@@ -764,6 +764,21 @@ mod tests {
         // Red and blue rose by 1, green fell (a later fix-up): Rec. 709 weights of red and blue.
         let got = bounced_luminance([2.0, 2.0, 2.0, 0.0], [1.0, 3.0, 1.0]) as f64;
         assert!((got - (0.2126 + 0.0722)).abs() < 1e-7, "{got}");
+    }
+
+    #[test]
+    fn the_light_shot_ahead_per_unit_unshot_power_is_the_ambient_term_s_factor() {
+        // A closed room (no direct pass: closure 1) of area 4 and albedo 0.5
+        // will still receive, per unit of unshot power, 1/(4 (1 − 0.5)).
+        let mut set = texels(&[1.0, 3.0]);
+        for t in &mut set.texels {
+            t.albedo = [0.5, 0.5, 0.25];
+        }
+        let sums = Sums::new(&set, &[[1.0; 3]; 2], None);
+        let factor = overshoot_factor(&sums);
+        for (got, expected) in factor.iter().zip([0.5, 0.5, 1.0 / 3.0]) {
+            assert!((got - expected).abs() < 1e-6, "{factor:?}");
+        }
     }
 
     #[test]
