@@ -1,7 +1,8 @@
-// Picks the batch's shooters: the patches with the largest unshot power
-// Σ ΔL·A (luminance), one argmax round per slot in a single workgroup, ties
-// to the lower index. Also totals the unshot and received power for the
-// convergence trace. Runs entirely on the GPU: no read-back between shots.
+// Picks the batch's shooters: the patches with the most power Σ ΔL·A to
+// shoot (luminance, in magnitude: unshot light, owed light and the light
+// shot ahead, `to_shoot`), one argmax round per slot in a single workgroup,
+// ties to the lower index. Also totals the unshot, unsettled and received
+// power for the convergence trace. Runs entirely on the GPU: no read-back between shots.
 //
 // Each invocation keeps the best of its own patches (every THREADS-th);
 // a round reduces those in two flat steps (GROUPS bests, then one) rather
@@ -54,8 +55,9 @@ fn main(@builtin(local_invocation_index) lid: u32) {
         chosen[j] = 0u;
         unshot += patch_power[j].rgb;
         received += patch_power[j].w;
-        unsettled += abs(luminance(patch_power[j].rgb));
-        landing += abs(luminance(patch_power[j].rgb)) * patch_coverage[j];
+        let magnitude = abs(luminance(patch_power[j].rgb));
+        unsettled += magnitude;
+        landing += magnitude * patch_coverage[j];
     }
     sum_unshot[lid] = unshot;
     sum_received[lid] = received;

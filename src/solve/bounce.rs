@@ -621,44 +621,41 @@ fn patch_coverage(texels: &TexelSet, patches: &Patches, coverage: Option<&[f32]>
     let Some(coverage) = coverage else {
         return vec![1.0; patches.patches.len().max(1)];
     };
-    let mut per_patch: Vec<f32> = patches
-        .patches
-        .iter()
-        .map(|p| {
-            let members = &patches.members[p.first as usize..(p.first + p.count) as usize];
-            let (mut covered, mut area) = (0.0f64, 0.0f64);
-            for &i in members {
-                let a = texels.texels[i as usize].area as f64;
-                covered += coverage[i as usize] as f64 * a;
-                area += a;
-            }
-            if area > 0.0 { (covered / area) as f32 } else { 0.0 }
-        })
-        .collect();
-    // A buffer is never empty.
-    per_patch.resize(per_patch.len().max(1), 0.0);
-    per_patch
+    per_patch(patches, 0.0, |members| {
+        let (mut covered, mut area) = (0.0f64, 0.0f64);
+        for &i in members {
+            let a = texels.texels[i as usize].area as f64;
+            covered += coverage[i as usize] as f64 * a;
+            area += a;
+        }
+        if area > 0.0 { (covered / area) as f32 } else { 0.0 }
+    })
 }
 
 /// Each patch's Σ albedo·A over its texels (rgb; w 0).
 fn patch_albedo(texels: &TexelSet, patches: &Patches) -> Vec<[f32; 4]> {
-    let mut per_patch: Vec<[f32; 4]> = patches
+    per_patch(patches, [0.0; 4], |members| {
+        let mut sum = [0.0f64; 3];
+        for &i in members {
+            let t = &texels.texels[i as usize];
+            for (s, a) in sum.iter_mut().zip(t.albedo) {
+                *s += a as f64 * t.area as f64;
+            }
+        }
+        [sum[0] as f32, sum[1] as f32, sum[2] as f32, 0.0]
+    })
+}
+
+/// `value` of each patch's member texels, in patch order; one `empty` where
+/// there are no patches, as a buffer is never empty.
+fn per_patch<T: Clone>(patches: &Patches, empty: T, value: impl Fn(&[u32]) -> T) -> Vec<T> {
+    let mut values: Vec<T> = patches
         .patches
         .iter()
-        .map(|p| {
-            let members = &patches.members[p.first as usize..(p.first + p.count) as usize];
-            let mut sum = [0.0f64; 3];
-            for &i in members {
-                let t = &texels.texels[i as usize];
-                for (s, a) in sum.iter_mut().zip(t.albedo) {
-                    *s += a as f64 * t.area as f64;
-                }
-            }
-            [sum[0] as f32, sum[1] as f32, sum[2] as f32, 0.0]
-        })
+        .map(|p| value(&patches.members[p.first as usize..(p.first + p.count) as usize]))
         .collect();
-    per_patch.resize(per_patch.len().max(1), [0.0; 4]);
-    per_patch
+    values.resize(values.len().max(1), empty);
+    values
 }
 
 /// The light (L_lm) a surface the scene covers whole will still receive,

@@ -1,6 +1,7 @@
 //! The batch's shooters (`solve_select`, one workgroup): the patches with
-//! the most unshot power, each with the five faces of its hemicube, and the
-//! batch's totals, the one thing the batch loop reads back.
+//! the most power to shoot (unshot, owed or shot ahead), each with the five
+//! faces of its hemicube, and the batch's totals, the one thing the batch
+//! loop reads back.
 
 use anyhow::Result;
 use bytemuck::{Pod, Zeroable};
