@@ -18,7 +18,9 @@
 // holds only what its kind needs.
 
 @group(0) @binding(0) var<uniform> params: DirectParams;
-// Three records a light: direction and cos α; L·Ω and Ω; sin α and rays.
+// Three records a light: direction and cos α; L·Ω and Ω; sin α, rays, at
+// each 32nd light which of its word's lights start a cluster, and the
+// cluster's size and rays (size | rays << 16; `solve::light_clusters`).
 @group(0) @binding(1) var<uniform> lights: array<vec4f, 3072>;
 @group(0) @binding(2) var<storage, read> points: array<Texel>;
 @group(0) @binding(3) var<storage, read> occluders: array<Occluders>;
@@ -213,6 +215,8 @@ struct Light {
     omega: f32,
     sa: f32,               // sine of the half-angle
     rays: u32,             // rays it gets where something may block it
+    cluster_size: u32,     // lights in its cluster (1: none)
+    cluster_rays: u32,     // rays the whole cluster gets
     cos_n: f32,            // cosine to the shading normal
     cos_f: f32,            // cosine to the face normal
     normal: vec3f,         // the point's shading normal
@@ -223,8 +227,9 @@ fn light_at(k: u32, p: Texel) -> Light {
     let head = lights[3u * k];
     let power = lights[3u * k + 1u];
     let extra = lights[3u * k + 2u];
+    let cluster = bitcast<u32>(extra.w);
     return Light(
-        head.xyz, head.w, power.rgb, power.w, extra.x, bitcast<u32>(extra.y),
+        head.xyz, head.w, power.rgb, power.w, extra.x, bitcast<u32>(extra.y), cluster & 0xffffu, cluster >> 16u,
         dot(p.normal, head.xyz), dot(p.face_normal, head.xyz), p.normal, p.face_normal,
     );
 }
@@ -279,15 +284,20 @@ const FIRST_RAYS: u32 = 8u;
 
 var<private> rays_cast: u32;
 
-// One light's rays at one point: where the next goes, and what the earlier
-// ones found. A light's first few rays are spread over its whole cone; the
-// rest are cast only where those disagree (a penumbra), since most lights
-// are wholly open or wholly blocked. Where none of them leaves the face (a
-// cone that reaches just above it), one more ray goes through the middle of
-// the sliver above the face.
+// One light's rays at one point, or a cluster's (`direct::clusters`: lights
+// too small to earn a ray each share theirs, taken in turn): where the next
+// goes, and what the earlier ones found. The first few rays are spread over
+// the whole cone; the rest are cast only where those disagree (a penumbra),
+// since most lights are wholly open or wholly blocked. Where none of them
+// leaves the face (a cone that reaches just above it), one more ray goes
+// through the middle of the sliver above the face.
 struct ConeRays {
-    l: Light,
-    frame: mat3x3f,
+    l: Light,              // the light, or the cluster's first
+    head: u32,             // its index in the batch
+    members: u32,          // the cluster's lights the rays go to, from the head's bit
+    member_count: u32,
+    member: u32,           // the member the next ray goes to, counted among `members`
+    rays: u32,             // rays to cast where the first ones disagree
     jitter: vec2f,
     sliver: vec3f,
     next: u32,             // the next ray
@@ -296,18 +306,40 @@ struct ConeRays {
     leaving: u32,
 }
 
-fn cone_rays(l: Light, k: u32, i: u32) -> ConeRays {
-    return ConeRays(l, basis(l.direction), jitter_of(i, k), sliver_ray(l), 0u, min(l.rays, FIRST_RAYS), 0u, 0u);
+// The rays of light `k` (`members` 1), or of the cluster it heads: as many
+// as its members the point gathers this way have earned, at least one.
+fn cone_rays(l: Light, k: u32, i: u32, members: u32) -> ConeRays {
+    // (In floats and by a product: a CPU driver divides integers lane by lane.)
+    let count = countOneBits(members);
+    let share = max(u32(ceil(f32(l.cluster_rays * count) / f32(l.cluster_size))), 1u);
+    let rays = select(l.rays, share, l.cluster_size > 1u);
+    let first = (hash(hash(i * 0x85ebca6bu ^ (params.first_light + k)) ^ 0x68bc21ebu) >> 16u) * count >> 16u;
+    return ConeRays(l, k, members, count, first, rays, jitter_of(i, k), sliver_ray(l), 0u, min(rays, FIRST_RAYS), 0u, 0u);
 }
 
+// Which bit of `mask` (at most eight set) is its `q`-th set one, from the lowest.
+fn nth_bit(mask: u32, q: u32) -> u32 {
+    let low4 = countOneBits(mask & 0xfu);
+    var base = select(0u, 4u, q >= low4);
+    var rest = select(q, q - low4, q >= low4);
+    let low2 = countOneBits((mask >> base) & 0x3u);
+    let high2 = rest >= low2;
+    base += select(0u, 2u, high2);
+    rest = select(rest, rest - low2, high2);
+    return base + select(0u, 1u, rest >= ((mask >> base) & 1u));
+}
+
+// Ray `next` goes to the members in turn, to a point of the R2 sequence
+// over that member's cone.
 fn next_direction(c: ConeRays) -> vec3f {
-    return select(cone_ray(c.frame, c.l.ca, c.next, c.jitter), c.sliver, c.next == c.l.rays);
+    let member = lights[3u * (c.head + nth_bit(c.members, c.member))];
+    return select(cone_ray(basis(member.xyz), member.w, c.next, c.jitter), c.sliver, c.next == c.rays);
 }
 
 // Counts the ray just cast; true when it was the light's last.
 fn count_ray(c: ptr<function, ConeRays>, leaves: bool, blocked: bool) -> bool {
     let j = (*c).next;
-    let rays = (*c).l.rays;
+    let rays = (*c).rays;
     (*c).leaving += select(0u, 1u, leaves);
     (*c).open += select(0u, 1u, leaves && !blocked);
     // After the first rays, on to the rest only in a penumbra.
@@ -319,6 +351,7 @@ fn count_ray(c: ptr<function, ConeRays>, leaves: bool, blocked: bool) -> bool {
     count = select(count, select(rays, rays + 1u, count == rays), last && (*c).leaving == 0u && j < rays);
     (*c).count = count;
     (*c).next = j + 1u;
+    (*c).member = select((*c).member + 1u, 0u, (*c).member + 1u == (*c).member_count);
     return j + 1u >= count;
 }
 
@@ -330,7 +363,7 @@ fn share_open(c: ConeRays) -> f32 {
 // Of light `l`'s rays at point `i` that leave the face, the share that
 // meet neither polygon (for a light no other blocker reaches: no walk).
 fn polygon_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers) -> f32 {
-    var c = cone_rays(l, k, i);
+    var c = cone_rays(l, k, i, 1u);
     loop {
         let d = next_direction(c);
         if (count_ray(&c, dot(d, p.face_normal) > 0.0, meets(b.p0, o, d) || meets(b.p1, o, d))) {
@@ -340,10 +373,11 @@ fn polygon_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers)
     return share_open(c);
 }
 
-// Of light `l`'s rays at point `i` that leave the face, the share that
-// meet nothing: the polygons first, then the hierarchy.
-fn cone_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers) -> f32 {
-    var c = cone_rays(l, k, i);
+// Of light `l`'s rays at point `i` that leave the face (or its cluster's,
+// to the `members` it heads), the share that meet nothing: the polygons
+// first, then the hierarchy.
+fn cone_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers, members: u32) -> f32 {
+    var c = cone_rays(l, k, i, members);
     loop {
         let d = next_direction(c);
         let leaves = dot(d, p.face_normal) > 0.0;
@@ -382,6 +416,19 @@ fn bit_walk(words: u32) -> BitWalk {
     return BitWalk(0u, 0u, words);
 }
 
+// Of a word's lights, the first of each cluster that has a light in
+// `lights`: each light's bit moves down to its cluster's start (`starts`;
+// a cluster never spans two words and holds at most eight lights).
+fn cluster_heads(lights: u32, starts: u32) -> u32 {
+    var heads = lights & starts;
+    var moving = lights;
+    for (var step = 1u; step < 8u; step++) {
+        moving = (moving & ~starts) >> 1u;
+        heads |= moving & starts;
+    }
+    return heads;
+}
+
 // The next light, or NO_LIGHT when they are all taken.
 fn next_bit(walk: ptr<function, BitWalk>, bits: ptr<function, array<u32, WORDS>>) -> u32 {
     if ((*walk).word == 0u && (*walk).words != 0u) {
@@ -412,7 +459,9 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     // gathered here; the others go to the loops below.
     var crossing: array<u32, WORDS>;
     var polygons: array<u32, WORDS>;
+    // Lights anything may block, by their clusters' first lights, and themselves.
     var walks: array<u32, WORDS>;
+    var walking: array<u32, WORDS>;
     var blocked_crossing: array<u32, WORDS>;
     // Which of each kind's words have any.
     var crossing_words = 0u;
@@ -423,13 +472,14 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     for (var w = 0u; w < WORDS; w++) {
         var crossing_bits = 0u;
         var polygon_bits = 0u;
-        var walk_bits = 0u;
+        var walking_bits = 0u;
         var blocked_crossing_bits = 0u;
         for (var bit = 0u; bit < 32u && k < params.light_count; bit++) {
             let head = lights[3u * k];
             let power = lights[3u * k + 1u];
             let ca = head.w;
-            let sa = lights[3u * k + 2u].x;
+            let extra = lights[3u * k + 2u];
+            let sa = extra.x;
             let cos_n = dot(p.normal, head.xyz);
             let cos_f = dot(p.face_normal, head.xyz);
             // Some of the cone above the face (a cone wider than a hemisphere always).
@@ -443,17 +493,18 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             let above = ca > 0.0 && cos_f >= sa;
             crossing_bits |= select(0u, 1u << bit, crosses);
             polygon_bits |= select(0u, 1u << bit, polygon && above);
-            walk_bits |= select(0u, 1u << bit, walk && above);
+            walking_bits |= select(0u, 1u << bit, walk && above);
             blocked_crossing_bits |= select(0u, 1u << bit, (walk || polygon) && !above);
             k += 1u;
         }
         crossing[w] = crossing_bits;
         polygons[w] = polygon_bits;
-        walks[w] = walk_bits;
+        walks[w] = cluster_heads(walking_bits, bitcast<u32>(lights[3u * 32u * w + 2u].z));
+        walking[w] = walking_bits;
         blocked_crossing[w] = blocked_crossing_bits;
         crossing_words |= select(0u, 1u << w, crossing_bits != 0u);
         polygon_words |= select(0u, 1u << w, polygon_bits != 0u);
-        walk_words |= select(0u, 1u << w, walk_bits != 0u);
+        walk_words |= select(0u, 1u << w, walking_bits != 0u);
         blocked_crossing_words |= select(0u, 1u << w, blocked_crossing_bits != 0u);
     }
     // Lights only the point's own surface hides part of.
@@ -478,7 +529,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         let l = light_at(light, p);
         add_plain_light_seen(&sums, l, polygon_visibility(l, light, i, p, o, b));
     }
-    // Lights anything may block.
+    // Lights anything may block, a cluster's together: what its rays find
+    // open is each member's share.
     bits = bit_walk(walk_words);
     loop {
         let light = next_bit(&bits, &walks);
@@ -487,7 +539,17 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             break;
         }
         let l = light_at(light, p);
-        add_plain_light_seen(&sums, l, cone_visibility(l, light, i, p, o, b));
+        var members = (walking[light >> 5u] >> (light & 31u)) & ((1u << l.cluster_size) - 1u);
+        let open = cone_visibility(l, light, i, p, o, b, members);
+        // (At least one: the head stands for a member that walks.)
+        loop {
+            let member = firstTrailingBit(members);
+            members &= members - 1u;
+            add_plain_light_seen(&sums, light_at(light + member, p), open);
+            continuing {
+                break if members == 0u;
+            }
+        }
     }
     // Lights something may block that cross the face's horizon (few: the
     // polygons' lights among them walk too, finding nothing in the cones).
@@ -499,7 +561,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             break;
         }
         let l = light_at(light, p);
-        add_light(&sums, l, cone_visibility(l, light, i, p, o, b));
+        add_light(&sums, l, cone_visibility(l, light, i, p, o, b, 1u));
     }
     if (trace_cut) {
         atomicOr(&status[0], WALK_CUT);

@@ -178,7 +178,8 @@ impl<'a> Kernels<'a> {
             _pad: [0; 3],
         };
         let params = gpu.uniform_buffer("ceiling params", &params);
-        let records = gpu.uniform_buffer("ceiling lights", &light_records(lights, self.power_per_ray));
+        let records =
+            gpu.uniform_buffer("ceiling lights", &light_records(lights, &vec![true; lights.len()], self.power_per_ray));
         let buffers = [&params, &records, &self.points, &self.sums, &self.counts];
         let group = bake::gpu::bind_buffers(gpu, "ceiling", &self.layout, &buffers);
         gpu.wait()?;

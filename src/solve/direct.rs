@@ -9,7 +9,8 @@
 //! and only lights whose cone reaches it get rays, traced through the
 //! scene's hierarchy on the GPU (`trace`). Rays are spread over a light's
 //! cone, turned per point, so a penumbra is soft and unbiased, and a wide or
-//! bright light gets more of them (`ray_count`).
+//! bright light gets more of them (`ray_count`). With more lights than
+//! `RAYS`, small neighbouring ones share their rays (`light_clusters`).
 //!
 //! A CPU driver stops a shader's loops after 65,535 turns in all; the
 //! points where that cut a batch short add nothing, and the batch is
@@ -21,6 +22,7 @@ use anyhow::{Result, bail};
 use bytemuck::{Pod, Zeroable};
 use serde::{Deserialize, Serialize};
 
+use super::light_clusters;
 use super::occluders::OccluderPass;
 use crate::colour::luminance;
 use crate::environment::{Light, LightSet};
@@ -162,10 +164,16 @@ struct Batches<'a> {
 
 impl Batches<'_> {
     /// Gathers `lights` (at most `MAX_BATCH`, the first being light
-    /// `first_light` of the set) into the sums at every point, or at the
-    /// `listed` ones (a buffer of indices, and how many); returns the points
-    /// a loop limit cut short, which added nothing, when there are any.
-    fn batch(&mut self, lights: &[Light], first_light: u32, listed: Option<&PointList>) -> Result<Option<PointList>> {
+    /// `first_light` of the set; `starts`: which start a cluster) into the
+    /// sums at every point, or at the `listed` ones (a buffer of indices,
+    /// and how many); returns the points a loop limit cut short, which added
+    /// nothing, when there are any.
+    fn batch(
+        &mut self,
+        (lights, starts): (&[Light], &[bool]),
+        first_light: u32,
+        listed: Option<&PointList>,
+    ) -> Result<Option<PointList>> {
         let gpu = self.gpu;
         let count = listed.map_or(self.point_count, |l| l.count);
         let (groups_x, groups_y) = gpu.dispatch_size(count, 64);
@@ -179,7 +187,7 @@ impl Batches<'_> {
             _pad: [0; 2],
         };
         let params = gpu.uniform_buffer("solve_direct params", &params);
-        let records = light_records(lights, self.power_per_ray);
+        let records = light_records(lights, starts, self.power_per_ray);
         let lights_buffer = gpu.uniform_buffer("solve_direct lights", &records);
         let list = listed.map_or(&self.no_list, |l| &l.buffer);
         let buffers = [&params, &lights_buffer, &self.points, &self.occluders, &self.sums, list, &self.status, &self.cut];
@@ -215,15 +223,17 @@ impl Batches<'_> {
 
     /// Gathers `lights` at every point or the `listed` ones, again in halves
     /// at the points a loop limit cuts short; returns the passes it took.
-    fn lights(&mut self, lights: &[Light], first_light: u32, listed: Option<&PointList>) -> Result<usize> {
-        let Some(cut) = self.batch(lights, first_light, listed)? else {
+    fn lights(&mut self, (lights, starts): (&[Light], &[bool]), first_light: u32, listed: Option<&PointList>) -> Result<usize> {
+        let Some(cut) = self.batch((lights, starts), first_light, listed)? else {
             return Ok(1);
         };
         if lights.len() == 1 {
             bail!("the GPU driver's loop limit cut the direct pass short at a single light");
         }
-        let (a, b) = lights.split_at(lights.len() / 2);
-        Ok(1 + self.lights(a, first_light, Some(&cut))? + self.lights(b, first_light + a.len() as u32, Some(&cut))?)
+        let half = lights.len() / 2;
+        let (a, b) = (lights.split_at(half), starts.split_at(half));
+        Ok(1 + self.lights((a.0, b.0), first_light, Some(&cut))?
+            + self.lights((a.1, b.1), first_light + half as u32, Some(&cut))?)
     }
 }
 
@@ -235,10 +245,15 @@ struct PointList {
 
 /// Three records per light: its direction and the cosine of its cone's
 /// half-angle (the cone of its solid angle); L·Ω (rgb) and Ω; the sine of
-/// the half-angle and the rays it gets where something may block it.
-pub fn light_records(lights: &[Light], power_per_ray: f32) -> [[f32; 4]; 3 * MAX_BATCH as usize] {
+/// the half-angle, the rays it gets where something may block it, at every
+/// 32nd light the bits of its word's lights that start a cluster, and its
+/// cluster's size and rays (`light_clusters`: a cluster runs from a light
+/// that `starts` one to the next).
+pub fn light_records(lights: &[Light], starts: &[bool], power_per_ray: f32) -> [[f32; 4]; 3 * MAX_BATCH as usize] {
     let mut records = [[0.0; 4]; 3 * MAX_BATCH as usize];
-    for (slot, light) in records.chunks_exact_mut(3).zip(lights) {
+    let wanted = wanted_rays(lights, power_per_ray);
+    let members = light_clusters::memberships(starts, &wanted, |k| ray_count(wanted[k]));
+    for (((slot, light), member), wanted) in records.chunks_exact_mut(3).zip(lights).zip(&members).zip(wanted) {
         let omega = light.solid_angle;
         // 1 − cos α = Ω/2π; sin α from it in f64, exact for a sun's tiny cone.
         let versine = (omega as f64 / std::f64::consts::TAU).min(2.0);
@@ -248,16 +263,33 @@ pub fn light_records(lights: &[Light], power_per_ray: f32) -> [[f32; 4]; 3 * MAX
         let power = light.radiance.map(|c| c * omega);
         slot[0] = [x, y, z, cos_alpha];
         slot[1] = [power[0], power[1], power[2], omega];
-        let rays = ray_count(omega, luminance(power) as f32 / power_per_ray);
-        slot[2] = [sin_alpha, f32::from_bits(rays), 0.0, 0.0];
+        let rays = ray_count(wanted);
+        let cluster = member.size | member.rays.min(MAX_RAYS) << 16;
+        slot[2] = [sin_alpha, f32::from_bits(rays), 0.0, f32::from_bits(cluster)];
+    }
+    // Which lights of each word start a cluster, at the word's first light.
+    for (word, members) in members.chunks(32).enumerate() {
+        let starts = members.iter().enumerate().filter(|(_, m)| m.offset == 0).fold(0u32, |s, (k, _)| s | 1 << k);
+        records[3 * 32 * word + 2][2] = f32::from_bits(starts);
     }
     records
 }
 
-/// Rays for a light of `omega` sr carrying `share` rays' worth of power:
-/// one per 1/`RAYS` of the sphere or of the power, whichever is more.
-fn ray_count(omega: f32, share: f32) -> u32 {
-    let wanted = (omega * RAYS / (4.0 * std::f32::consts::PI)).max(share).ceil();
+/// The rays each light earns, before rounding up (`wanted_ray`).
+fn wanted_rays(lights: &[Light], power_per_ray: f32) -> Vec<f32> {
+    let power = |l: &Light| luminance(l.radiance.map(|c| c * l.solid_angle)) as f32;
+    lights.iter().map(|l| wanted_ray(l.solid_angle, power(l) / power_per_ray)).collect()
+}
+
+/// The rays a light of `omega` sr carrying `share` rays' worth of power
+/// earns: one per 1/`RAYS` of the sphere or of the power, whichever is more.
+fn wanted_ray(omega: f32, share: f32) -> f32 {
+    (omega * RAYS / (4.0 * std::f32::consts::PI)).max(share)
+}
+
+/// Rays a light that earns `wanted` gets where something may block it, alone.
+fn ray_count(wanted: f32) -> u32 {
+    let wanted = wanted.ceil();
     if wanted.is_finite() { (wanted as u32).clamp(1, MAX_RAYS) } else { MAX_RAYS }
 }
 
@@ -318,12 +350,15 @@ impl<'a> DirectPass<'a> {
             visits: 0,
             power_per_ray: power_per_ray(lights),
         };
+        let clustered = light_clusters::clustered(lights.lights.len(), RAYS);
+        let wanted = wanted_rays(&lights.lights, batches.power_per_ray);
+        let (ordered, starts) = light_clusters::order(&lights.lights, &wanted, clustered);
         let batch = batch_size.clamp(1, MAX_BATCH) as usize;
         let total = lights.lights.len() as u64;
         let mut count = 0;
-        for (index, chunk) in lights.lights.chunks(batch).enumerate() {
+        for (index, chunk) in ordered.chunks(batch).zip(starts.chunks(batch)).enumerate() {
             count += batches.lights(chunk, (index * batch) as u32, None)?;
-            progress((index * batch + chunk.len()) as u64, total);
+            progress((index * batch + chunk.0.len()) as u64, total);
         }
         let sums: Vec<[f32; 4]> = read_buffer(gpu, &batches.sums, 2 * point_count)?;
         gpu.check("solve (direct)")?;

@@ -20,6 +20,7 @@ mod contact;
 pub mod direct;
 mod hemicube;
 mod hemicube_cull;
+mod light_clusters;
 mod occluders;
 mod overlaps;
 mod patch_power;

@@ -14,6 +14,22 @@ use glam::{Quat, Vec3, Vec3Swizzles};
 
 #[test]
 fn sphere_darkens_the_ground_beneath_it_by_the_analytic_amount() {
+    sphere_darkens_the_ground(LightMode::Budget { count: 512 });
+}
+
+/// With more lights than rays for the sphere, neighbouring small ones share
+/// their rays (`solve::light_clusters`, whose unit tests count them): the
+/// shadow keeps its analytic depth.
+#[test]
+fn sphere_darkens_the_ground_by_the_analytic_amount_when_small_lights_share_rays() {
+    for mode in [LightMode::Cube { face_size: 32 }, LightMode::Budget { count: 4096 }] {
+        let baked = sphere_darkens_the_ground(mode);
+        let direct = baked.solution.direct.expect("an environment: a direct pass");
+        eprintln!("{mode}: {} lights, {} rays", direct.lights, direct.rays);
+    }
+}
+
+fn sphere_darkens_the_ground(mode: LightMode) -> bake::Baked {
     let gpu = common::gpu();
     let (radius, height) = (1.0f32, 1.5f32);
     let mut builder = SceneBuilder::new();
@@ -26,7 +42,7 @@ fn sphere_darkens_the_ground_beneath_it_by_the_analytic_amount() {
         Placement::at(Vec3::new(0.0, height, 0.0)),
     );
     let sky = 1.0;
-    let lights = common::lights(&EnvironmentMap::horizon([sky; 3]), LightMode::Budget { count: 512 });
+    let lights = common::lights(&EnvironmentMap::horizon([sky; 3]), mode);
     let baked = common::bake(&gpu, &builder, &lights, &common::options(256));
     let ground = common::values_of(&baked, 0);
 
@@ -35,10 +51,11 @@ fn sphere_darkens_the_ground_beneath_it_by_the_analytic_amount() {
     assert!(!below.is_empty() && !far.is_empty());
     let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
     let expected = sky * (1.0 - (radius / height).powi(2));
-    eprintln!("below the sphere {:.4} (expected {expected:.4}), far away {:.4}", mean(&below), mean(&far));
+    eprintln!("{mode}: below the sphere {:.4} (expected {expected:.4}), far away {:.4}", mean(&below), mean(&far));
     assert!((mean(&below) / expected - 1.0).abs() < 0.03, "below: {} vs {expected}", mean(&below));
     assert!(mean(&far) > 0.97 * sky, "far: {}", mean(&far));
     assert!(mean(&below) < 0.7 * mean(&far));
+    baked
 }
 
 /// Lit share of the texel footprint centred on `centre` with atlas axes
