@@ -279,6 +279,11 @@ fn jitter_of(i: u32, k: u32) -> vec2f {
     return vec2f(f32(h & 0xffffu), f32(h >> 16u)) / 65536.0;
 }
 
+// Whether the batch's lights come in clusters (`solve::light_clusters`):
+// pipelines for a set without leave out the loops over a cluster's lights
+// (every loop turn counts towards a CPU driver's limit).
+override CLUSTERS: bool = true;
+
 // Rays a light gets first at a point (`ConeRays`).
 const FIRST_RAYS: u32 = 8u;
 
@@ -499,7 +504,11 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         }
         crossing[w] = crossing_bits;
         polygons[w] = polygon_bits;
-        walks[w] = cluster_heads(walking_bits, bitcast<u32>(lights[3u * 32u * w + 2u].z));
+        if (CLUSTERS) {
+            walks[w] = cluster_heads(walking_bits, bitcast<u32>(lights[3u * 32u * w + 2u].z));
+        } else {
+            walks[w] = walking_bits;
+        }
         walking[w] = walking_bits;
         blocked_crossing[w] = blocked_crossing_bits;
         crossing_words |= select(0u, 1u << w, crossing_bits != 0u);
@@ -539,16 +548,20 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             break;
         }
         let l = light_at(light, p);
-        var members = (walking[light >> 5u] >> (light & 31u)) & ((1u << l.cluster_size) - 1u);
-        let open = cone_visibility(l, light, i, p, o, b, members);
-        // (At least one: the head stands for a member that walks.)
-        loop {
-            let member = firstTrailingBit(members);
-            members &= members - 1u;
-            add_plain_light_seen(&sums, light_at(light + member, p), open);
-            continuing {
-                break if members == 0u;
+        if (CLUSTERS) {
+            var members = (walking[light >> 5u] >> (light & 31u)) & ((1u << l.cluster_size) - 1u);
+            let open = cone_visibility(l, light, i, p, o, b, members);
+            // (At least one: the head stands for a member that walks.)
+            loop {
+                let member = firstTrailingBit(members);
+                members &= members - 1u;
+                add_plain_light_seen(&sums, light_at(light + member, p), open);
+                continuing {
+                    break if members == 0u;
+                }
             }
+        } else {
+            add_plain_light_seen(&sums, l, cone_visibility(l, light, i, p, o, b, 1u));
         }
     }
     // Lights something may block that cross the face's horizon (few: the

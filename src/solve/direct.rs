@@ -9,8 +9,8 @@
 //! and only lights whose cone reaches it get rays, traced through the
 //! scene's hierarchy on the GPU (`trace`). Rays are spread over a light's
 //! cone, turned per point, so a penumbra is soft and unbiased, and a wide or
-//! bright light gets more of them (`ray_count`). With more lights than
-//! `RAYS`, small neighbouring ones share their rays (`light_clusters`).
+//! bright light gets more of them (`ray_count`). With twice as many lights
+//! as `RAYS`, small neighbouring ones share their rays (`light_clusters`).
 //!
 //! A CPU driver stops a shader's loops after 65,535 turns in all; the
 //! points where that cut a batch short add nothing, and the batch is
@@ -100,11 +100,15 @@ pub struct Direct {
     pub stats: DirectStats,
 }
 
-/// The gather: its pipeline and its own bind group's layout (group 0; the
-/// scene is group 1).
+/// The gather: its pipelines and its own bind group's layout (group 0; the
+/// scene is group 1). The pipeline for lights in clusters is built when a
+/// light set first needs it.
 struct GatherPipeline {
     pipeline: wgpu::ComputePipeline,
+    clustered: std::cell::OnceCell<wgpu::ComputePipeline>,
     layout: wgpu::BindGroupLayout,
+    scene_layout: wgpu::BindGroupLayout,
+    cut_outs: f64,
 }
 
 impl GatherPipeline {
@@ -133,9 +137,28 @@ impl GatherPipeline {
                 gpu::storage_entry(7, false, compute),
             ],
         });
-        let pipeline =
-            gpu.compute_pipeline_with(Shader::SolveDirect, "main", &[&layout, scene_layout], &[("CUT_OUTS", cut_outs)]);
-        GatherPipeline { pipeline, layout }
+        let pipeline = Self::pipeline(gpu, &layout, scene_layout, cut_outs, false);
+        let scene_layout = scene_layout.clone();
+        GatherPipeline { pipeline, clustered: Default::default(), layout, scene_layout, cut_outs }
+    }
+
+    fn pipeline(
+        gpu: &Gpu,
+        layout: &wgpu::BindGroupLayout,
+        scene_layout: &wgpu::BindGroupLayout,
+        cut_outs: f64,
+        clustered: bool,
+    ) -> wgpu::ComputePipeline {
+        let constants = [("CUT_OUTS", cut_outs), ("CLUSTERS", f64::from(u8::from(clustered)))];
+        gpu.compute_pipeline_with(Shader::SolveDirect, "main", &[layout, scene_layout], &constants)
+    }
+
+    /// The pipeline for a light set with (`clustered`) or without clusters.
+    fn for_lights(&self, gpu: &Gpu, clustered: bool) -> &wgpu::ComputePipeline {
+        if !clustered {
+            return &self.pipeline;
+        }
+        self.clustered.get_or_init(|| Self::pipeline(gpu, &self.layout, &self.scene_layout, self.cut_outs, true))
     }
 }
 
@@ -143,6 +166,8 @@ impl GatherPipeline {
 struct Batches<'a> {
     gpu: &'a Gpu,
     pass: &'a GatherPipeline,
+    /// The pass's pipeline for this light set.
+    pipeline: &'a wgpu::ComputePipeline,
     scene: &'a wgpu::BindGroup,
     points: wgpu::Buffer,
     occluders: wgpu::Buffer,
@@ -196,7 +221,7 @@ impl Batches<'_> {
         encoder.clear_buffer(&self.status, 0, None);
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.pass.pipeline);
+            pass.set_pipeline(self.pipeline);
             pass.set_bind_group(0, &group, &[]);
             pass.set_bind_group(1, self.scene, &[]);
             pass.dispatch_workgroups(groups_x, groups_y, 1);
@@ -331,9 +356,11 @@ impl<'a> DirectPass<'a> {
         let occluder_buffer =
             self.occluders.record(gpu, &mut encoder, &self.scene_group, &point_buffer, point_count as u32);
         gpu.queue.submit([encoder.finish()]);
+        let clustered = light_clusters::clustered(lights.lights.len(), RAYS);
         let mut batches = Batches {
             gpu,
             pass: &self.gather,
+            pipeline: self.gather.for_lights(gpu, clustered),
             scene: &self.scene_group,
             points: point_buffer,
             occluders: occluder_buffer,
@@ -350,7 +377,6 @@ impl<'a> DirectPass<'a> {
             visits: 0,
             power_per_ray: power_per_ray(lights),
         };
-        let clustered = light_clusters::clustered(lights.lights.len(), RAYS);
         let wanted = wanted_rays(&lights.lights, batches.power_per_ray);
         let (ordered, starts) = light_clusters::order(&lights.lights, &wanted, clustered);
         let batch = batch_size.clamp(1, MAX_BATCH) as usize;

@@ -33,12 +33,13 @@ pub struct Membership {
     pub rays: u32,
 }
 
-/// Whether a set of `lights` forms clusters: only with more lights than
-/// rays for the sphere (`rays`), since with fewer most lights earn a ray or
-/// more, and the few that earn less are not worth an order that changes
-/// every sum.
+/// Whether a set of `lights` forms clusters: only with at least twice as
+/// many lights as rays for the sphere (`rays`). With fewer, lights that earn
+/// under a ray pair up at best, and the saving does not pay for the cluster
+/// order, which changes how the lights fall into batches (BENCHMARKS.md,
+/// stop 66).
 pub fn clustered(lights: usize, rays: f32) -> bool {
-    lights as f32 > rays
+    lights as f32 >= 2.0 * rays
 }
 
 /// The lights in cluster order, and which of them start a cluster. Where

@@ -17,7 +17,7 @@ fn sphere_darkens_the_ground_beneath_it_by_the_analytic_amount() {
     sphere_darkens_the_ground(LightMode::Budget { count: 512 });
 }
 
-/// With more lights than rays for the sphere, neighbouring small ones share
+/// With twice as many lights as rays for the sphere, neighbouring small ones share
 /// their rays (`solve::light_clusters`, whose unit tests count them): the
 /// shadow keeps its analytic depth.
 #[test]
