@@ -289,7 +289,7 @@ const FIRST_RAYS: u32 = 8u;
 
 var<private> rays_cast: u32;
 
-// One light's rays at one point, or a cluster's (`direct::clusters`: lights
+// One light's rays at one point, or a cluster's (`solve::light_clusters`: lights
 // too small to earn a ray each share theirs, taken in turn): where the next
 // goes, and what the earlier ones found. The first few rays are spread over
 // the whole cone; the rest are cast only where those disagree (a penumbra),
