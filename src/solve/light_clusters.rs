@@ -12,10 +12,12 @@
 
 use std::borrow::Cow;
 
+use glam::Vec3;
+
 use crate::environment::Light;
 
 /// Most lights in one cluster (solve_direct.wgsl finds a member among eight bits).
-pub const MAX_MEMBERS: usize = 8;
+const MAX_MEMBERS: usize = 8;
 /// A cluster holds small lights that together earn at most this many rays,
 /// and gets that many rounded up: no part of the sphere gets fewer rays than
 /// it earns, as with lights alone.
@@ -104,8 +106,12 @@ fn cluster_starts(items: &[(Light, f32)]) -> Vec<bool> {
 /// (1 − cos θ ≤ 4Ω/π): a cluster stays compact where its order steps from
 /// one half of a cut to the other.
 fn near(a: &Light, b: &Light, omega: f32) -> bool {
-    let cos = a.direction.iter().zip(b.direction).map(|(x, y)| x * y).sum::<f32>();
-    1.0 - cos <= 4.0 * omega / std::f32::consts::PI
+    1.0 - cos_between(a, b) <= 4.0 * omega / std::f32::consts::PI
+}
+
+/// The cosine of the angle between two lights' directions.
+fn cos_between(a: &Light, b: &Light) -> f32 {
+    Vec3::from(a.direction).dot(Vec3::from(b.direction))
 }
 
 /// The axis along which the lights' directions spread the most.
@@ -209,7 +215,7 @@ mod tests {
         assert_eq!(rays as usize, clusters);
         for (k, m) in members.iter().enumerate() {
             let (head, member) = (&ordered[k - m.offset as usize], &ordered[k]);
-            let cos: f32 = head.direction.iter().zip(member.direction).map(|(a, b)| a * b).sum();
+            let cos = cos_between(head, member);
             // Within four cube texels' widths (2/32 of a face each) of the cluster's first.
             assert!(cos > (4.0f32 * 2.0 / 32.0).cos(), "light {k} is {}° from its cluster's first", cos.acos().to_degrees());
             assert_eq!(k / WORD, (k - m.offset as usize) / WORD, "the cluster of light {k} spans two words");
