@@ -313,13 +313,13 @@ struct ConeRays {
 
 // The rays of light `k` (`members` 1), or of the cluster it heads: as many
 // as its members the point gathers this way have earned, at least one.
-fn cone_rays(l: Light, k: u32, i: u32, members: u32) -> ConeRays {
+fn cone_rays(l: Light, k: u32, i: u32, members: u32, lead: Light) -> ConeRays {
     // (In floats and by a product: a CPU driver divides integers lane by lane.)
     let count = countOneBits(members);
     let share = max(u32(ceil(f32(l.cluster_rays * count) / f32(l.cluster_size))), 1u);
     let rays = select(l.rays, share, l.cluster_size > 1u);
     let first = (hash(hash(i * 0x85ebca6bu ^ (params.first_light + k)) ^ 0x68bc21ebu) >> 16u) * count >> 16u;
-    return ConeRays(l, k, members, count, first, rays, jitter_of(i, k), sliver_ray(l), 0u, min(rays, FIRST_RAYS), 0u, 0u);
+    return ConeRays(l, k, members, count, first, rays, jitter_of(i, k), sliver_ray(lead), 0u, min(rays, FIRST_RAYS), 0u, 0u);
 }
 
 // Which bit of `mask` (at most eight set) is its `q`-th set one, from the lowest.
@@ -368,7 +368,7 @@ fn share_open(c: ConeRays) -> f32 {
 // Of light `l`'s rays at point `i` that leave the face, the share that
 // meet neither polygon (for a light no other blocker reaches: no walk).
 fn polygon_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers) -> f32 {
-    var c = cone_rays(l, k, i, 1u);
+    var c = cone_rays(l, k, i, 1u, l);
     loop {
         let d = next_direction(c);
         if (count_ray(&c, dot(d, p.face_normal) > 0.0, meets(b.p0, o, d) || meets(b.p1, o, d))) {
@@ -380,9 +380,10 @@ fn polygon_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers)
 
 // Of light `l`'s rays at point `i` that leave the face (or its cluster's,
 // to the `members` it heads), the share that meet nothing: the polygons
-// first, then the hierarchy.
-fn cone_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers, members: u32) -> f32 {
-    var c = cone_rays(l, k, i, members);
+// first, then the hierarchy. Where none leaves the face, one more goes
+// through the sliver of `lead`'s cone above it (a member that walks).
+fn cone_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers, members: u32, lead: Light) -> f32 {
+    var c = cone_rays(l, k, i, members, lead);
     loop {
         let d = next_direction(c);
         let leaves = dot(d, p.face_normal) > 0.0;
@@ -467,6 +468,9 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     // Lights anything may block, by their clusters' first lights, and themselves.
     var walks: array<u32, WORDS>;
     var walking: array<u32, WORDS>;
+    // Lights something may block that cross the face's horizon: with
+    // clusters they walk with theirs (among `walking`, added by the exact
+    // share of their cone above the face), else one by one.
     var blocked_crossing: array<u32, WORDS>;
     // Which of each kind's words have any.
     var crossing_words = 0u;
@@ -498,8 +502,9 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             let above = ca > 0.0 && cos_f >= sa;
             crossing_bits |= select(0u, 1u << bit, crosses);
             polygon_bits |= select(0u, 1u << bit, polygon && above);
-            walking_bits |= select(0u, 1u << bit, walk && above);
-            blocked_crossing_bits |= select(0u, 1u << bit, (walk || polygon) && !above);
+            let crossing_walk = (walk || polygon) && !above;
+            walking_bits |= select(0u, 1u << bit, (walk && above) || (CLUSTERS && crossing_walk));
+            blocked_crossing_bits |= select(0u, 1u << bit, crossing_walk);
             k += 1u;
         }
         crossing[w] = crossing_bits;
@@ -514,7 +519,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         crossing_words |= select(0u, 1u << w, crossing_bits != 0u);
         polygon_words |= select(0u, 1u << w, polygon_bits != 0u);
         walk_words |= select(0u, 1u << w, walking_bits != 0u);
-        blocked_crossing_words |= select(0u, 1u << w, blocked_crossing_bits != 0u);
+        blocked_crossing_words |= select(0u, 1u << w, blocked_crossing_bits != 0u && !CLUSTERS);
     }
     // Lights only the point's own surface hides part of.
     var finished = 0u;
@@ -549,23 +554,37 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         }
         let l = light_at(light, p);
         if (CLUSTERS) {
-            var members = (walking[light >> 5u] >> (light & 31u)) & ((1u << l.cluster_size) - 1u);
-            let open = cone_visibility(l, light, i, p, o, b, members);
-            // (At least one: the head stands for a member that walks.)
+            let shift = light & 31u;
+            let members = (walking[light >> 5u] >> shift) & ((1u << l.cluster_size) - 1u);
+            let lead = light_at(light + firstTrailingBit(members), p);
+            let open = cone_visibility(l, light, i, p, o, b, members, lead);
+            // Members above the face, then those across its horizon (few,
+            // and their share of the cone above the face costs more).
+            var across = members & (blocked_crossing[light >> 5u] >> shift);
+            var above = members & ~across;
             loop {
-                let member = firstTrailingBit(members);
-                members &= members - 1u;
-                add_plain_light_seen(&sums, light_at(light + member, p), open);
-                continuing {
-                    break if members == 0u;
+                if (above == 0u) {
+                    break;
                 }
+                let member = firstTrailingBit(above);
+                above &= above - 1u;
+                add_plain_light_seen(&sums, light_at(light + member, p), open);
+            }
+            loop {
+                if (across == 0u) {
+                    break;
+                }
+                let member = firstTrailingBit(across);
+                across &= across - 1u;
+                add_light(&sums, light_at(light + member, p), open);
             }
         } else {
-            add_plain_light_seen(&sums, l, cone_visibility(l, light, i, p, o, b, 1u));
+            add_plain_light_seen(&sums, l, cone_visibility(l, light, i, p, o, b, 1u, l));
         }
     }
-    // Lights something may block that cross the face's horizon (few: the
-    // polygons' lights among them walk too, finding nothing in the cones).
+    // Without clusters, lights something may block that cross the face's
+    // horizon (few: the polygons' lights among them walk too, finding
+    // nothing in the cones).
     bits = bit_walk(blocked_crossing_words);
     loop {
         let light = next_bit(&bits, &blocked_crossing);
@@ -574,7 +593,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             break;
         }
         let l = light_at(light, p);
-        add_light(&sums, l, cone_visibility(l, light, i, p, o, b, 1u));
+        add_light(&sums, l, cone_visibility(l, light, i, p, o, b, 1u, l));
     }
     if (trace_cut) {
         atomicOr(&status[0], WALK_CUT);
