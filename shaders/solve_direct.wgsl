@@ -313,13 +313,17 @@ struct ConeRays {
 
 // The rays of light `k` (`members` 1), or of the cluster it heads: as many
 // as its members the point gathers this way have earned, at least one.
-fn cone_rays(l: Light, k: u32, i: u32, members: u32, lead: Light) -> ConeRays {
+fn cone_rays(l: Light, k: u32, i: u32, members: u32) -> ConeRays {
     // (In floats and by a product: a CPU driver divides integers lane by lane.)
     let count = countOneBits(members);
     let share = max(u32(ceil(f32(l.cluster_rays * count) / f32(l.cluster_size))), 1u);
     let rays = select(l.rays, share, l.cluster_size > 1u);
     let first = (hash(hash(i * 0x85ebca6bu ^ (params.first_light + k)) ^ 0x68bc21ebu) >> 16u) * count >> 16u;
-    return ConeRays(l, k, members, count, first, rays, jitter_of(i, k), sliver_ray(lead), 0u, min(rays, FIRST_RAYS), 0u, 0u);
+    // The sliver's ray goes through the first member that walks (the light
+    // itself, alone), which may cross the horizon where the head does not.
+    let lead = k + firstTrailingBit(members);
+    let sliver = sliver_ray(l.face, lights[3u * lead], lights[3u * lead + 2u].x);
+    return ConeRays(l, k, members, count, first, rays, jitter_of(i, k), sliver, 0u, min(rays, FIRST_RAYS), 0u, 0u);
 }
 
 // Which bit of `mask` (at most eight set) is its `q`-th set one, from the lowest.
@@ -368,7 +372,7 @@ fn share_open(c: ConeRays) -> f32 {
 // Of light `l`'s rays at point `i` that leave the face, the share that
 // meet neither polygon (for a light no other blocker reaches: no walk).
 fn polygon_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers) -> f32 {
-    var c = cone_rays(l, k, i, 1u, l);
+    var c = cone_rays(l, k, i, 1u);
     loop {
         let d = next_direction(c);
         if (count_ray(&c, dot(d, p.face_normal) > 0.0, meets(b.p0, o, d) || meets(b.p1, o, d))) {
@@ -380,10 +384,9 @@ fn polygon_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers)
 
 // Of light `l`'s rays at point `i` that leave the face (or its cluster's,
 // to the `members` it heads), the share that meet nothing: the polygons
-// first, then the hierarchy. Where none leaves the face, one more goes
-// through the sliver of `lead`'s cone above it (a member that walks).
-fn cone_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers, members: u32, lead: Light) -> f32 {
-    var c = cone_rays(l, k, i, members, lead);
+// first, then the hierarchy.
+fn cone_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers, members: u32) -> f32 {
+    var c = cone_rays(l, k, i, members);
     loop {
         let d = next_direction(c);
         let leaves = dot(d, p.face_normal) > 0.0;
@@ -398,13 +401,15 @@ fn cone_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers, me
     return share_open(c);
 }
 
-// A ray through the middle of the part of light `l`'s cone above the face,
-// for a cone that reaches only a little above it: halfway between the
-// cone's highest point and the horizon below it.
-fn sliver_ray(l: Light) -> vec3f {
-    let up = normalize(l.face - l.cos_f * l.direction);
-    let top = l.ca * l.direction + l.sa * up;
-    let horizon = normalize(l.direction - l.cos_f * l.face);
+// A ray through the middle of the part of a light's cone above the face
+// `face`, for a cone that reaches only a little above it: halfway between
+// the cone's highest point and the horizon below it. `head` is the light's
+// first record (direction, cos α), `sa` sin α.
+fn sliver_ray(face: vec3f, head: vec4f, sa: f32) -> vec3f {
+    let cos_f = dot(face, head.xyz);
+    let up = normalize(face - cos_f * head.xyz);
+    let top = head.w * head.xyz + sa * up;
+    let horizon = normalize(head.xyz - cos_f * face);
     return normalize(top + horizon);
 }
 
@@ -556,8 +561,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         if (CLUSTERS) {
             let shift = light & 31u;
             let members = (walking[light >> 5u] >> shift) & ((1u << l.cluster_size) - 1u);
-            let lead = light_at(light + firstTrailingBit(members), p);
-            let open = cone_visibility(l, light, i, p, o, b, members, lead);
+            let open = cone_visibility(l, light, i, p, o, b, members);
             // Members above the face, then those across its horizon (few,
             // and their share of the cone above the face costs more).
             var across = members & (blocked_crossing[light >> 5u] >> shift);
@@ -579,7 +583,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
                 add_light(&sums, light_at(light + member, p), open);
             }
         } else {
-            add_plain_light_seen(&sums, l, cone_visibility(l, light, i, p, o, b, 1u, l));
+            add_plain_light_seen(&sums, l, cone_visibility(l, light, i, p, o, b, 1u));
         }
     }
     // Without clusters, lights something may block that cross the face's
@@ -593,7 +597,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             break;
         }
         let l = light_at(light, p);
-        add_light(&sums, l, cone_visibility(l, light, i, p, o, b, 1u, l));
+        add_light(&sums, l, cone_visibility(l, light, i, p, o, b, 1u));
     }
     if (trace_cut) {
         atomicOr(&status[0], WALK_CUT);
