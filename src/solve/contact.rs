@@ -18,10 +18,11 @@
 //! a chart (no area) too, since a viewer's bilinear filter reads it at the
 //! chart's edge (left out, those beside a ring's contact kept 0.76 of the
 //! path tracer's light while the chart's inner texels were fixed). Its
-//! bounced light becomes
-//! the mean outgoing radiance (albedo · L_lm + emission) of the texels that
-//! `GATHER_SIDE`² stratified cosine rays meet, which is L_lm = E/π by
-//! definition; what each ray meets is found once, and the gather is
+//! bounced light becomes the mean reflected radiance (albedo · L_lm) of the
+//! texels that `GATHER_SIDE`² stratified cosine rays meet, which is
+//! L_lm = E/π by definition, plus the light emitters send it (`emitted`:
+//! the same rays and samples on the emitters, each counted by the balance
+//! heuristic); what each ray meets is found once, and the gather is
 //! repeated (Jacobi) until light between texels in contact with each other
 //! stops changing. Where a surface lies within `DIRECT_REACH_TEXELS` its
 //! direct light is traced too (`DIRECT_SAMPLES` shadow rays spread over the
@@ -42,6 +43,8 @@ use crate::solve::overlaps::SAME_FACING_COS;
 use crate::texelize::{Texel, TexelSet};
 use crate::trace::Surfaces;
 use crate::trace::random::{Rng, basis, cosine_hemisphere};
+
+use super::emitted::Emitters;
 
 /// Probe rays per texel, per side of their stratified grid (16 rays).
 const PROBE_SIDE: u32 = 4;
@@ -146,25 +149,24 @@ pub fn fix(geometry: &Geometry, direct: &Direct, lightmap: &mut [[f32; 3]], cell
     // gather rays meet; none where a ray met a surface light passes.
     let direct_reach = DIRECT_REACH_TEXELS * geometry.texel_size;
     let side = gather_side(contacts.len());
+    let emitters = Emitters::new(&texels.texels);
     let contacts: Vec<Contact> = contacts
         .par_iter()
         .filter_map(|&(i, probe)| {
             let t = &texels.texels[i];
-            let traced = direct.environment.filter(|_| probe.nearest < direct_reach);
-            let own_direct = match traced {
-                Some(lights) => {
-                    let environment = tracer.direct(t, i, probe.origin, lights)?;
-                    let punctual = direct.punctual.map_or([0.0; 3], |p| p[i]);
-                    [0, 1, 2].map(|c| environment[c] + punctual[c])
-                }
-                None => direct.total[i],
-            };
+            let (own_direct, direct_traced) = tracer.own_direct(i, &probe, direct, direct_reach)?;
+            let gathered = tracer.gather_hits(t, i, probe.origin, side, emitters.as_ref())?;
+            let sampled = emitters.as_ref().map_or(DVec3::ZERO, |e| {
+                let mut rng = Rng::new(&[i as u64, 4]);
+                e.sampled(tracer.occluders, probe.origin, t.normal().as_dvec3(), face_of(t), side * side, &mut rng)
+            });
+            let emitted = gathered.emitted + sampled;
             Some(Contact {
                 texel: i,
                 weight: (probe.hits as f32 / FULL_WEIGHT_HITS).min(1.0),
-                direct: own_direct,
-                direct_traced: traced.is_some(),
-                hits: tracer.gather_hits(t, i, probe.origin, side)?,
+                direct: [0, 1, 2].map(|c| own_direct[c] + emitted[c] as f32),
+                direct_traced,
+                hits: gathered.hits,
             })
         })
         .collect();
@@ -184,7 +186,7 @@ pub fn fix(geometry: &Geometry, direct: &Direct, lightmap: &mut [[f32; 3]], cell
                 let sum = contact.hits.iter().fold(DVec3::ZERO, |sum, &j| {
                     let t = &texels.texels[j as usize];
                     let l = lightmap[j as usize];
-                    sum + DVec3::from_array([0, 1, 2].map(|c| (t.albedo[c] * l[c] + t.emission[c]) as f64))
+                    sum + DVec3::from_array([0, 1, 2].map(|c| (t.albedo[c] * l[c]) as f64))
                 });
                 let mean = sum / rays;
                 [mean.x as f32, mean.y as f32, mean.z as f32]
@@ -217,12 +219,20 @@ pub fn fix(geometry: &Geometry, direct: &Direct, lightmap: &mut [[f32; 3]], cell
     stats
 }
 
+/// What a texel's gather rays meet: the texels, and the emitted light
+/// they count.
+struct Gathered {
+    hits: Vec<u32>,
+    emitted: DVec3,
+}
+
 /// A texel in contact, as traced.
 struct Contact {
     texel: usize,
     /// Share of its value taken from the traced light (`FULL_WEIGHT_HITS`).
     weight: f32,
-    /// Its direct light (L_lm).
+    /// Its direct light (L_lm), and what it receives straight from emitters
+    /// (`emitted`).
     direct: [f32; 3],
     /// Whether `direct` was traced here (else the direct pass's).
     direct_traced: bool,
@@ -280,6 +290,18 @@ impl<'a> Tracer<'a> {
         start + f * room
     }
 
+    /// Contact texel `i`'s direct light (L_lm), and whether it was traced:
+    /// where another surface lies within `direct_reach`, traced (`direct`),
+    /// else the direct pass's. `None` where a ray met a surface light passes.
+    fn own_direct(&self, i: usize, probe: &Probe, direct: &Direct, direct_reach: f64) -> Option<([f32; 3], bool)> {
+        let Some(lights) = direct.environment.filter(|_| probe.nearest < direct_reach) else {
+            return Some((direct.total[i], false));
+        };
+        let environment = self.direct(&self.texels.texels[i], i, probe.origin, lights)?;
+        let punctual = direct.punctual.map_or([0.0; 3], |p| p[i]);
+        Some(([0, 1, 2].map(|c| environment[c] + punctual[c]), true))
+    }
+
     /// `None` when no probe ray meets a surface within `reach`, or one meets
     /// a surface light passes.
     fn probe(&self, t: &Texel, i: usize, reach: f64) -> Option<Probe> {
@@ -306,9 +328,12 @@ impl<'a> Tracer<'a> {
     }
 
     /// The texels `side`² cosine rays meet from the front (rays that leave
-    /// the scene, or meet a surface's back, bring no bounced light).
-    fn gather_hits(&self, t: &Texel, i: usize, o: DVec3, side: u32) -> Option<Vec<u32>> {
+    /// the scene, or meet a surface's back, bring no bounced light), and
+    /// the emitted light they find as their share (`emitted::Emitters`).
+    fn gather_hits(&self, t: &Texel, i: usize, o: DVec3, side: u32, emitters: Option<&Emitters>) -> Option<Gathered> {
         let mut hits = Vec::with_capacity((side * side) as usize);
+        let mut emitted = DVec3::ZERO;
+        let n = t.normal().as_dvec3();
         for d in cosine_directions(t, side, &[i as u64, 2]) {
             let Some((distance, primitive, face)) = self.occluders.first_hit(o, d, f64::INFINITY) else {
                 continue;
@@ -318,9 +343,12 @@ impl<'a> Tracer<'a> {
             }
             if let Some(j) = self.texel_at(o + d * distance, primitive, face, d, distance) {
                 hits.push(j);
+                if let Some(e) = emitters {
+                    emitted += e.counted(j, d, distance, n, side * side);
+                }
             }
         }
-        Some(hits)
+        Some(Gathered { hits, emitted })
     }
 
     /// The texel whose light a ray along `d` takes where it meets the

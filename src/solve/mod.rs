@@ -18,6 +18,7 @@ pub mod bounce;
 mod casters;
 mod contact;
 pub mod direct;
+mod emitted;
 mod hemicube;
 mod hemicube_cull;
 mod light_clusters;

@@ -303,6 +303,50 @@ fn perpendicular_squares_sharing_an_edge_match_the_closed_form() {
     assert!((f / 0.20004 - 1.0).abs() < 0.03, "F = {f}");
 }
 
+/// Floor texels beside a wall are in contact (`contact`): their light is
+/// gathered along 256 cosine rays, which meet a small bright emitter a
+/// metre up about once between them. The emitter is sampled where it is
+/// too, so each such texel gets the inverse-square law's light: for a
+/// square of area A and radiance L at height h, distance d, L_lm = L A h² / (π d⁴).
+#[test]
+fn floor_beside_a_wall_gets_a_small_emitters_light_without_noise() {
+    let (radiance, side) = (100.0f32, 0.1f32);
+    let black = [0.0, 0.0, 0.0, 1.0];
+    let mut builder = SceneBuilder::new();
+    builder.object("floor", &MeshData::plane(2.0, 2.0, 8), black, [0.0; 3], Placement::default());
+    let wall = Placement::at(Vec3::new(0.5, 0.25, 0.0));
+    builder.object("wall", &MeshData::cuboid([0.05, 0.5, 2.0]), black, [0.0; 3], wall);
+    let facing_down = Placement::at(Vec3::new(0.0, 1.0, 0.0)).rotated(Quat::from_rotation_x(180f32.to_radians()));
+    builder.object("emitter", &MeshData::plane(side, side, 1), black, [radiance; 3], facing_down);
+    // Coarse patches: the contact fix-up then reaches 15 cm out from the wall.
+    let baked = bake_emitters(&builder, 128, |o| o.solve.bounce.patches = 64);
+    assert!(baked.solution.contact.as_ref().is_some_and(|c| c.gathered > 0), "no texel was in contact");
+    let texels = &baked.texels.texels;
+    let emitter = texels.iter().filter(|t| t.emission[0] > 0.0).fold(Vec3::ZERO, |sum, t| sum + Vec3::from(t.position));
+    let emitter = emitter / texels.iter().filter(|t| t.emission[0] > 0.0).count() as f32;
+    let ratios: Vec<f64> = (0..texels.len())
+        .filter(|&i| {
+            let t = &texels[i];
+            let x = t.position[0] - emitter.x;
+            t.primitive == 0 && t.area > 0.0 && (0.36..0.46).contains(&x) && (t.position[2] - emitter.z).abs() < 0.8
+        })
+        .map(|i| {
+            let to = emitter - Vec3::from(texels[i].position);
+            let expected = radiance * side * side * to.y * to.y / (std::f32::consts::PI * to.length_squared().powi(2));
+            (baked.solution.lightmap[i][0] / expected) as f64
+        })
+        .collect();
+    let mean = ratios.iter().sum::<f64>() / ratios.len() as f64;
+    let rms = (ratios.iter().map(|r| (r - 1.0).powi(2)).sum::<f64>() / ratios.len() as f64).sqrt();
+    eprintln!(
+        "{} floor texels beside the wall: bake / inverse-square law {mean:.4} on average, rms {rms:.4}",
+        ratios.len()
+    );
+    assert!(ratios.len() >= 100, "only {} texels beside the wall", ratios.len());
+    assert!((mean - 1.0).abs() < 0.03, "bake / inverse-square law {mean} on average");
+    assert!(rms < 0.05, "bake / inverse-square law scatters by {rms}");
+}
+
 /// A black floor and a black sphere, one of them glowing (radiance 1).
 fn ball_and_floor(ball_height: f32, radius: f32, glowing_ball: bool) -> SceneBuilder {
     let (ball, floor) = if glowing_ball { ([1.0; 3], [0.0; 3]) } else { ([0.0; 3], [1.0; 3]) };

@@ -362,6 +362,48 @@ fn lights_grazing_the_horizon_by_a_rounding_error_end_their_rays() {
     assert!(brightest < 1e-4, "the ground took {brightest} from lights below its horizon");
 }
 
+/// A CPU driver ends a shader's loops after 65,535 turns in all: the direct
+/// pass must see where that cut a point short and gather it again, or the
+/// point keeps a walk's or a light's share unfinished. Inside a black bowl
+/// under a uniform sky every light may be blocked and each ray walks the
+/// bowl's triangles, so one batch of 1,024 lights runs past that limit at
+/// lavapipe's points, and 32 lights a batch stay well within it: the two
+/// must cast the same rays and agree but for the order of the sums.
+#[test]
+fn points_a_loop_limit_cuts_short_get_all_their_light() {
+    let gpu = common::gpu();
+    let bowl = common::inside_of(&MeshData::sphere(1.0, 48, 24), |c| c.y < 0.0);
+    let mut builder = SceneBuilder::new();
+    builder.object("bowl", &bowl, [0.0, 0.0, 0.0, 1.0], [0.0; 3], Placement::default());
+    let lights = common::lights(&EnvironmentMap::from_fn(64, 32, |_| [1.0; 3]), LightMode::Budget { count: 1024 });
+    let bake_in_batches = |batch_size| {
+        let mut options = common::options(24);
+        options.solve.batch_size = batch_size;
+        options.solve.supersample = false;
+        options.solve.contact = false;
+        common::bake(&gpu, &builder, &lights, &options)
+    };
+    let (whole, parts) = (bake_in_batches(1024), bake_in_batches(32));
+    let stats = |baked: &bake::Baked| baked.solution.direct.clone().expect("a direct pass");
+    let (whole_stats, parts_stats) = (stats(&whole), stats(&parts));
+    eprintln!(
+        "{} lights: {} passes in one batch, {} in batches of 32; rays {} and {}",
+        lights.lights.len(),
+        whole_stats.batches,
+        parts_stats.batches,
+        whole_stats.rays,
+        parts_stats.rays
+    );
+    assert_eq!(whole_stats.rays, parts_stats.rays, "the two cast different rays");
+    let worst = whole
+        .solution
+        .lightmap
+        .iter()
+        .zip(&parts.solution.lightmap)
+        .fold(0.0f32, |worst, (a, b)| worst.max((a[1] - b[1]).abs() / b[1].max(1e-6)));
+    assert!(worst < 1e-4, "a texel differs by {worst} between one batch and batches of 32");
+}
+
 /// A texel on a concave surface beside a shadow edge is supersampled: its
 /// sub-samples lie on the plane of its facet, and past a crease that plane
 /// runs behind the next facet, where a sub-sample's rays start inside the
