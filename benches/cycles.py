@@ -5,6 +5,8 @@
     python3 benches/cycles.py --bake target/release/bake           # ~35 min on 2 cores
     python3 benches/cycles.py --bake target/release/bake --quick   # ~1 min, checks it runs
     python3 benches/cycles.py --from-json benches/cycles_results.json  # tables and figures again
+    python3 benches/cycles.py --atlas 512 --only emitter_room --reference 1024 --max-samples 256
+        # at the README's atlas size: Cycles' cost a sample grows 16-fold, so fewer samples
 
 For each scene bake runs a ladder of settings (the wall time of the whole CLI
 run each); bake's output GLB (its TEXCOORD_1 lightmap UVs) is then loaded in
@@ -58,10 +60,11 @@ LADDER = [
 ]
 
 
-def scenes(work, env_dir, quick):
+def scenes(work, env_dir, quick, atlas=None):
     """(name, kind, glb, environment or None, atlas size, reference samples)."""
     # Reference samples from a trial: each scene's own error then ≈ 0.1–1 %.
-    atlas, samples = (64, 128) if quick else (128, 8192)
+    default_atlas, samples = (64, 128) if quick else (128, 8192)
+    atlas = atlas or default_atlas
     window, emitter = os.path.join(work, "window_room.glb"), os.path.join(work, "emitter_room.glb")
     cycles_scene.window_room(window)
     cycles_scene.emitter_room(emitter)
@@ -231,8 +234,11 @@ def measure(args, name, kind, glb, env, atlas, reference_samples, work):
     # The two halves' difference has twice the variance of one half, four
     # times that of their mean: the reference's own error is half of it.
     noise = error(ref_a, ref_b, mask) / 2
+    # Kept for comparisons the ladder does not make (a throwaway build against it).
+    np.save(os.path.join(out, "reference.npy"), reference)
+    np.save(os.path.join(out, "mask.npy"), mask)
     cycles_runs = []
-    for i, samples in enumerate(args.samples):
+    for i, samples in enumerate(s for s in args.samples if s <= args.max_samples):
         image, wall = session.bake(samples, seed=10 + i)
         raw = error(image[..., :3], reference, mask)
         cycles_runs.append((samples, wall, raw))
@@ -243,7 +249,7 @@ def measure(args, name, kind, glb, env, atlas, reference_samples, work):
     lit = mask & (reference[..., :3].sum(-1) > 0)
     uncovered = int(sum(((lm[..., :3].sum(-1) == 0) & lit).sum() for _, _, lm in bake_runs))
     return {
-        "name": name, "kind": kind, "atlas": f"{shape[1]}×{shape[0]}", "texels": int(mask.sum()),
+        "name": name, "kind": kind, "atlas": f"{shape[1]}×{shape[0]}", "atlas_size": atlas, "texels": int(mask.sum()),
         "blocks": len(blocks(reference, mask)), "reference_samples": reference_samples, "reference_noise": noise,
         "reference_seconds": session.seconds[:2], "load_seconds": session.load_seconds,
         "uncovered": uncovered, "blender": session.version,
@@ -277,7 +283,9 @@ def report(r, docs):
             extra.append((c[1], level))
         r["reached"][f"{level:.0%}"] = (b, c, fmt_ratio(c, b))
         print(f"time to {level:.0%}: bake {fmt_time(b)}, Cycles {fmt_time(c)}, ratio {fmt_ratio(c, b)}")
-    path = os.path.join(docs, f"cycles-{r['name']}.svg")
+    # Figures at other than the usual 128² atlas carry its size in their name.
+    size = r.get("atlas_size", 128)
+    path = os.path.join(docs, f"cycles-{r['name']}.svg" if size == 128 else f"cycles-{r['name']}-{size}.svg")
     figure(path, r["name"], r["kind"], curves["bake"], curves["cycles"], sorted(extra), noise)
     print(f"figure: {os.path.relpath(path, ROOT)}")
 
@@ -293,6 +301,9 @@ def main():
     parser.add_argument("--reference", type=int, help="Cycles samples of the converged reference (two halves; "
                         "default 4096, 128 with --quick)")
     parser.add_argument("--only", help="one scene by name")
+    parser.add_argument("--atlas", type=int, help="the atlas size (default 128, 64 with --quick)")
+    parser.add_argument("--max-samples", type=int, default=1024,
+                        help="Cycles' most samples a run; past them its times are extrapolated")
     parser.add_argument("--json", help="also write the results here")
     parser.add_argument("--from-json", help="print the tables and draw the figures of results --json wrote")
     args = parser.parse_args()
@@ -309,7 +320,7 @@ def main():
           f"Blender {cycles_bake.bpy.app.version_string}; {os.cpu_count()} × {cpu}")
     print("error = " + " ".join(error.__doc__.split()))
     results = []
-    for name, kind, glb, env, atlas, reference in scenes(args.work, args.env_dir, args.quick):
+    for name, kind, glb, env, atlas, reference in scenes(args.work, args.env_dir, args.quick, args.atlas):
         if args.only and name != args.only:
             continue
         results.append(measure(args, name, kind, glb, env, atlas, args.reference or reference, args.work))

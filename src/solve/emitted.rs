@@ -17,7 +17,7 @@ use crate::trace::Surfaces;
 use crate::trace::random::{Rng, basis};
 
 /// Samples of the emitters per contact texel.
-pub const SAMPLES: u32 = 64;
+const SAMPLES: u32 = 64;
 
 /// The scene's emissive texels, drawn by power (area × luminance of emission).
 pub struct Emitters<'a> {
