@@ -75,8 +75,12 @@ impl<'a> Emitters<'a> {
             let target = self.point_in(j, rng);
             let to = target - o;
             let distance = to.length();
+            // (Zero or not finite: no direction to take.)
+            if !distance.is_normal() {
+                continue;
+            }
             let d = to / distance;
-            if d.dot(f) <= 0.0 || !distance.is_finite() || occluders.blocks(o, target) {
+            if d.dot(f) <= 0.0 || occluders.blocks(o, target) {
                 continue;
             }
             light += self.counted(j, d, distance, n, gathered);
