@@ -82,6 +82,7 @@ internal_modules!(
 );
 
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
@@ -410,6 +411,21 @@ pub fn preflight(config: &Config) -> Result<()> {
 /// The whole run: every input baked into a staging folder, then moved into
 /// `config.output` together with `report.json` only if everything succeeded.
 pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Report> {
+    let stop = AtomicBool::new(false);
+    std::thread::scope(|scope| {
+        let warm = || drop(scope.spawn(|| solve::warm(gpu, &stop)));
+        let report = run_inputs(config, gpu, progress, warm);
+        stop.store(true, Ordering::Relaxed);
+        report
+    })
+}
+
+/// `run`'s work. Once the environment has loaded, `warm` starts building
+/// the solve's pipelines on another thread while the first scene is
+/// imported, unwrapped and texelized (not during the load, which that
+/// slows by more than it saves on a 2-core machine); a run that fails stops
+/// it after the pipeline under way.
+fn run_inputs(config: &Config, gpu: &Gpu, progress: &mut dyn Progress, warm: impl FnOnce()) -> Result<Report> {
     let start = Instant::now();
     check_adapter_limits(gpu, &config.bake)?;
     let mut staging = output::Staging::new(&config.output, &config.inputs)?;
@@ -421,6 +437,7 @@ pub fn run(config: &Config, gpu: &Gpu, progress: &mut dyn Progress) -> Result<Re
         inputs.push(InputFile::hash("environment", env)?);
     }
     let environment = config.environment.as_ref().map(|path| environment_stage(path, config, progress)).transpose()?;
+    warm();
 
     // `--reference` traces against the full-resolution map, not the light set.
     let mut bake_options = config.bake.clone();

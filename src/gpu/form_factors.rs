@@ -49,11 +49,14 @@ fn evaluate(gpu: &Gpu, entry: &str, cases: &[Case]) -> Vec<f32> {
         source: wgpu::ShaderSource::Wgsl(source.into()),
     });
     let stages = wgpu::ShaderStages::COMPUTE;
-    let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("form factor cases"),
-        // 0: the cases, 1: one result per case.
-        entries: &[storage_entry(0, true, stages), storage_entry(1, false, stages)],
-    });
+    let layout = gpu.bind_group_layout(
+        "form factor cases",
+        &[
+            // 0: the cases, 1: one result per case.
+            storage_entry(0, true, stages),
+            storage_entry(1, false, stages),
+        ],
+    );
     let pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some("form factor cases"),
         bind_group_layouts: &[Some(&layout)],
@@ -141,9 +144,8 @@ fn a_square_stands_in_for_the_parallelogram_of_its_corners_and_only_from_its_fro
     let gpu = Gpu::new(None).expect("an adapter");
     let (down, h, side) = ([0.0, -1.0, 0.0], 0.8f32, 0.5f32);
     let area = side * side;
-    let square = |p: [f32; 3], n: [f32; 3]| {
-        case(p, n, [0.0, h, 0.0], [down[0], down[1], down[2], area], [1.0, 0.0, 0.0])
-    };
+    let square =
+        |p: [f32; 3], n: [f32; 3]| case(p, n, [0.0, h, 0.0], [down[0], down[1], down[2], area], [1.0, 0.0, 0.0]);
     // From below (its front), and from above facing it (behind it).
     let got = evaluate(&gpu, "square", &[square([0.0; 3], [0.0, 1.0, 0.0]), square([0.0, 2.0 * h, 0.0], down)]);
     assert_close(got[0], 4.0 * parallel_corner(side as f64 / 2.0, side as f64 / 2.0, h as f64), "square in front");

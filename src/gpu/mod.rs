@@ -4,6 +4,7 @@
 //! Stages never create a `Gpu`; `main` (or a test) makes one and passes it
 //! down, as wgpu's `hello_compute` example separates set-up from work.
 
+mod built;
 #[cfg(test)]
 mod form_factors;
 mod materials;
@@ -62,6 +63,8 @@ pub struct Gpu {
     memory_peak: AtomicU64,
     /// Longest a `wait` blocks before the GPU counts as hung (`None`: forever).
     wait_timeout: Option<Duration>,
+    /// Shader modules, layouts and pipelines already built.
+    built: built::Built,
 }
 
 /// Environment variable of the device-loss test hook (see `Gpu::wait`).
@@ -160,6 +163,7 @@ impl Gpu {
             stage: Mutex::new(String::new()),
             memory_peak: AtomicU64::new(0),
             wait_timeout: None,
+            built: Default::default(),
         })
     }
 
@@ -245,7 +249,14 @@ impl Gpu {
 
     /// A texture of 4-word records read with `textureLoad`, `width` to a
     /// row, `rows` rows to a layer, laid out layer by layer in `records`.
-    pub fn records_texture(&self, label: &str, records: &[[u32; 4]], width: u32, rows: u32, layers: u32) -> wgpu::Texture {
+    pub fn records_texture(
+        &self,
+        label: &str,
+        records: &[[u32; 4]],
+        width: u32,
+        rows: u32,
+        layers: u32,
+    ) -> wgpu::Texture {
         use wgpu::util::DeviceExt;
         self.device.create_texture_with_data(
             &self.queue,
@@ -329,10 +340,22 @@ impl Gpu {
 
     /// Builds the named shader (with the pieces of `shaders/include/` it
     /// uses prepended).
+    /// Built once per device.
     pub fn shader(&self, shader: Shader) -> wgpu::ShaderModule {
-        self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some(shader.stem()),
-            source: wgpu::ShaderSource::Wgsl(shader.source().into()),
+        self.built.module(shader, || {
+            self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(shader.stem()),
+                source: wgpu::ShaderSource::Wgsl(shader.source().into()),
+            })
+        })
+    }
+
+    /// A bind-group layout of `entries`, built once per device: passes that
+    /// ask for equal entries get the same layout, and so the same pipelines
+    /// from `compute_pipeline`.
+    pub fn bind_group_layout(&self, label: &str, entries: &[wgpu::BindGroupLayoutEntry]) -> wgpu::BindGroupLayout {
+        self.built.layout(entries, || {
+            self.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries })
         })
     }
 
@@ -346,8 +369,22 @@ impl Gpu {
         self.compute_pipeline_with(shader, entry, layouts, &[])
     }
 
-    /// As `compute_pipeline`, with values for the shader's `override` constants.
+    /// As `compute_pipeline`, with values for the shader's `override`
+    /// constants. Built once per device for the same shader, entry,
+    /// constants and layouts.
     pub fn compute_pipeline_with(
+        &self,
+        shader: Shader,
+        entry: &str,
+        layouts: &[&wgpu::BindGroupLayout],
+        constants: &[(&str, f64)],
+    ) -> wgpu::ComputePipeline {
+        self.built.pipeline(shader, entry, constants, layouts, || {
+            self.build_compute_pipeline(shader, entry, layouts, constants)
+        })
+    }
+
+    fn build_compute_pipeline(
         &self,
         shader: Shader,
         entry: &str,

@@ -33,7 +33,7 @@ const TRACE: Include = include_wgsl!("trace.wgsl");
 const OCCLUDERS: Include = include_wgsl!("occluders.wgsl");
 
 /// Every pass's shader, named `<stage>_<pass>` after its file.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Shader {
     /// Rasterizes triangles in lightmap-UV space: nearest triangle per texel and exact covered area.
     TexelizeRaster,

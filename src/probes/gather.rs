@@ -92,9 +92,9 @@ pub struct Solved<'a> {
 impl GatherPass {
     pub fn new(gpu: &Gpu, scene: &Scene) -> Result<GatherPass> {
         let compute = wgpu::ShaderStages::COMPUTE;
-        let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("probes_gather"),
-            entries: &[
+        let layout = gpu.bind_group_layout(
+            "probes_gather",
+            &[
                 // 0: ProbeParams
                 gpu::uniform_entry(0, compute),
                 // 1: the probes' positions
@@ -110,7 +110,7 @@ impl GatherPass {
                 // 6: the sums (written)
                 gpu::storage_entry(6, false, compute),
             ],
-        });
+        );
         let scene_gpu = GpuScene::new(gpu, scene)?;
         let scene_layout = GpuScene::bind_group_layout(gpu);
         let scene_group = scene_gpu.bind_group(gpu, &scene_layout);

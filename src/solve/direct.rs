@@ -100,6 +100,14 @@ pub struct Direct {
     pub stats: DirectStats,
 }
 
+/// Builds the pass's pipelines ahead (`solve::warm`) for the common case:
+/// a scene without cut-outs and a light set without clusters.
+pub(super) fn warm(gpu: &Gpu) {
+    let scene_layout = GpuScene::bind_group_layout(gpu);
+    OccluderPass::new(gpu, &scene_layout);
+    GatherPipeline::new(gpu, &scene_layout, 0.0);
+}
+
 /// The gather: its pipelines and its own bind group's layout (group 0; the
 /// scene is group 1). The pipeline for lights in clusters is built when a
 /// light set first needs it.
@@ -116,9 +124,9 @@ impl GatherPipeline {
     /// test is compiled in), else 0.0.
     fn new(gpu: &Gpu, scene_layout: &wgpu::BindGroupLayout, cut_outs: f64) -> GatherPipeline {
         let compute = wgpu::ShaderStages::COMPUTE;
-        let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("solve_direct"),
-            entries: &[
+        let layout = gpu.bind_group_layout(
+            "solve_direct",
+            &[
                 // 0: DirectParams
                 gpu::uniform_entry(0, compute),
                 // 1: the batch's lights, two records each
@@ -136,7 +144,7 @@ impl GatherPipeline {
                 // 7: the points cut short
                 gpu::storage_entry(7, false, compute),
             ],
-        });
+        );
         let pipeline = Self::pipeline(gpu, &layout, scene_layout, cut_outs, false);
         let scene_layout = scene_layout.clone();
         GatherPipeline { pipeline, clustered: Default::default(), layout, scene_layout, cut_outs }
@@ -215,7 +223,8 @@ impl Batches<'_> {
         let records = light_records(lights, starts, self.power_per_ray);
         let lights_buffer = gpu.uniform_buffer("solve_direct lights", &records);
         let list = listed.map_or(&self.no_list, |l| &l.buffer);
-        let buffers = [&params, &lights_buffer, &self.points, &self.occluders, &self.sums, list, &self.status, &self.cut];
+        let buffers =
+            [&params, &lights_buffer, &self.points, &self.occluders, &self.sums, list, &self.status, &self.cut];
         let group = gpu::bind_buffers(gpu, "solve_direct", &self.pass.layout, &buffers);
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         encoder.clear_buffer(&self.status, 0, None);
@@ -248,7 +257,12 @@ impl Batches<'_> {
 
     /// Gathers `lights` at every point or the `listed` ones, again in halves
     /// at the points a loop limit cuts short; returns the passes it took.
-    fn lights(&mut self, (lights, starts): (&[Light], &[bool]), first_light: u32, listed: Option<&PointList>) -> Result<usize> {
+    fn lights(
+        &mut self,
+        (lights, starts): (&[Light], &[bool]),
+        first_light: u32,
+        listed: Option<&PointList>,
+    ) -> Result<usize> {
         let Some(cut) = self.batch((lights, starts), first_light, listed)? else {
             return Ok(1);
         };
@@ -364,7 +378,11 @@ impl<'a> DirectPass<'a> {
             scene: &self.scene_group,
             points: point_buffer,
             occluders: occluder_buffer,
-            sums: gpu.zeroed_storage_buffer::<[f32; 4]>("solve_direct sums", 2 * point_count, wgpu::BufferUsages::COPY_SRC),
+            sums: gpu.zeroed_storage_buffer::<[f32; 4]>(
+                "solve_direct sums",
+                2 * point_count,
+                wgpu::BufferUsages::COPY_SRC,
+            ),
             status: gpu.zeroed_storage_buffer::<u32>(
                 "solve_direct status",
                 4,
@@ -479,5 +497,23 @@ mod tests {
             "DirectParams",
             DirectParams { point_count, row_stride, light_count, first_light, listed }
         );
+    }
+
+    /// `gpu::built`: a pass asking again for its pipeline (another scene of
+    /// the run) gets the one built before, and one with other constants
+    /// (cut-outs, clusters) gets its own.
+    #[test]
+    fn a_pipeline_is_built_once_per_device_and_constants() {
+        let gpu = Gpu::new(None).expect("an adapter");
+        let pipeline = |cut_outs, clustered| {
+            let gather = GatherPipeline::new(&gpu, &GpuScene::bind_group_layout(&gpu), cut_outs);
+            gather.for_lights(&gpu, clustered).clone()
+        };
+        let constants = [(0.0, false), (1.0, false), (0.0, true), (1.0, true)];
+        let first: Vec<_> = constants.iter().map(|&(cut_outs, clustered)| pipeline(cut_outs, clustered)).collect();
+        for (i, &(cut_outs, clustered)) in constants.iter().enumerate() {
+            assert!(pipeline(cut_outs, clustered) == first[i], "{:?} built again", constants[i]);
+            assert!(first[..i].iter().all(|p| *p != first[i]), "{:?} shares another's pipeline", constants[i]);
+        }
     }
 }

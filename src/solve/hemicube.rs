@@ -62,7 +62,8 @@ impl Hemicube {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let pipeline = |label, vs, fs| Casters::pipeline(gpu, label, &pipeline_layout, &module, [vs, fs], FACE_INSTANCES);
+        let pipeline =
+            |label, vs, fs| Casters::pipeline(gpu, label, &pipeline_layout, &module, [vs, fs], FACE_INSTANCES);
         Hemicube {
             opaque: pipeline("solve_hemicube", "vs_hemicube", "fs_hemicube"),
             masked: pipeline("solve_hemicube masked", "vs_hemicube_masked", "fs_hemicube_masked"),
@@ -137,9 +138,9 @@ impl Hemicube {
 fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
     let vertex = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
     let [materials_entry, textures_entry, sampler_entry] = Casters::layout_entries(2);
-    gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("solve_hemicube"),
-        entries: &[
+    gpu.bind_group_layout(
+        "solve_hemicube",
+        &[
             // 0: BounceParams (near, far)
             gpu::uniform_entry(0, vertex),
             // 2: materials (alpha cut-outs)
@@ -149,7 +150,7 @@ fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
             // 4: their sampler
             sampler_entry,
         ],
-    })
+    )
 }
 
 #[cfg(test)]

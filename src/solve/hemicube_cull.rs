@@ -111,9 +111,10 @@ impl HemicubeCull {
             &layout,
             &[&params, &casters.vertices, hemicube_faces, &indices, &draws, &triangle_solid, &solids],
         );
+        let [cull, write_draws] = pipelines(gpu);
         Some(HemicubeCull {
-            cull: gpu.compute_pipeline(Shader::SolveHemicubeCull, "cull_triangles", &[&layout]),
-            write_draws: gpu.compute_pipeline(Shader::SolveHemicubeCull, "write_draws", &[&layout]),
+            cull,
+            write_draws,
             indices,
             draws,
             group,
@@ -172,11 +173,18 @@ fn solid_buffers(gpu: &Gpu, casters: &Casters, triangles: u32) -> (wgpu::Buffer,
     (triangle_solid, solids)
 }
 
+/// The pass's pipelines, the cull and the draws' writer (built once per
+/// device, `solve::warm`).
+pub(super) fn pipelines(gpu: &Gpu) -> [wgpu::ComputePipeline; 2] {
+    let layout = bind_group_layout(gpu);
+    ["cull_triangles", "write_draws"].map(|entry| gpu.compute_pipeline(Shader::SolveHemicubeCull, entry, &[&layout]))
+}
+
 fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
     let compute = wgpu::ShaderStages::COMPUTE;
-    gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("solve_hemicube_cull"),
-        entries: &[
+    gpu.bind_group_layout(
+        "solve_hemicube_cull",
+        &[
             // 0: CullParams, 1: caster vertices, 2: the batch's hemicube faces
             gpu::uniform_entry(0, compute),
             gpu::storage_entry(1, true, compute),
@@ -188,7 +196,7 @@ fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
             gpu::storage_entry(5, true, compute),
             gpu::storage_entry(6, true, compute),
         ],
-    })
+    )
 }
 
 #[cfg(test)]

@@ -35,6 +35,7 @@ pub mod supersample;
 mod surfaces;
 
 use std::cell::LazyCell;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::Result;
 use serde::{Deserialize, Serialize};
@@ -75,6 +76,28 @@ impl Default for SolveOptions {
             punctual: true,
             bounce: BounceOptions::default(),
         }
+    }
+}
+
+/// Builds the GPU passes' pipelines ahead, in the order a bake needs them,
+/// until `stop` is set: each is built once per device (`gpu::built`), so a
+/// run can have them built on another thread while its CPU stages go on.
+/// The pipelines of rarer cases (cut-outs, clustered lights, probes) are
+/// built when first needed.
+pub fn warm(gpu: &Gpu, stop: &AtomicBool) {
+    let steps: [fn(&Gpu); 6] = [
+        direct::warm,
+        |gpu| drop(patch_power::pipelines(gpu)),
+        |gpu| drop(select::pipeline(gpu)),
+        |gpu| drop(hemicube_cull::pipelines(gpu)),
+        |gpu| drop(shooter_cull::pipeline(gpu)),
+        |gpu| drop(shoot::pipelines(gpu)),
+    ];
+    for step in steps {
+        if stop.load(Ordering::Relaxed) {
+            return;
+        }
+        step(gpu);
     }
 }
 

@@ -37,9 +37,9 @@ pub struct OccluderPass {
 impl OccluderPass {
     pub fn new(gpu: &Gpu, scene_layout: &wgpu::BindGroupLayout) -> OccluderPass {
         let compute = wgpu::ShaderStages::COMPUTE;
-        let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("solve_occluders"),
-            entries: &[
+        let layout = gpu.bind_group_layout(
+            "solve_occluders",
+            &[
                 // 0: OccluderParams
                 gpu::uniform_entry(0, compute),
                 // 1: the points (texels and sub-samples)
@@ -47,7 +47,7 @@ impl OccluderPass {
                 // 2: their occluders (written)
                 gpu::storage_entry(2, false, compute),
             ],
-        });
+        );
         let pipeline = gpu.compute_pipeline(Shader::SolveOccluders, "main", &[&layout, scene_layout]);
         OccluderPass { pipeline, layout }
     }

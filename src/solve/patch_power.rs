@@ -12,9 +12,9 @@
 //! that pass.
 
 use super::patches::Patches;
-use crate::texelize::TexelSet;
 use super::resources::Resources;
 use crate::gpu::{self, Gpu, Shader};
+use crate::texelize::TexelSet;
 
 pub(super) struct PatchPower {
     power: wgpu::ComputePipeline,
@@ -55,9 +55,10 @@ impl PatchPower {
             layout: &layout,
             entries: &entries,
         });
+        let [power, shooter_cells] = pipelines(gpu);
         PatchPower {
-            power: gpu.compute_pipeline(Shader::SolvePatchPower, "main", &[&layout]),
-            shooter_cells: gpu.compute_pipeline(Shader::SolvePatchPower, "shooter_cells_of_batch", &[&layout]),
+            power,
+            shooter_cells,
             group,
             groups,
             shooter_count: r.dispatch.shooter_count,
@@ -79,11 +80,18 @@ impl PatchPower {
     }
 }
 
+/// The pass's pipelines, the power sums and the shooters' sub-cells (built
+/// once per device, `solve::warm`).
+pub(super) fn pipelines(gpu: &Gpu) -> [wgpu::ComputePipeline; 2] {
+    let layout = bind_group_layout(gpu);
+    ["main", "shooter_cells_of_batch"].map(|entry| gpu.compute_pipeline(Shader::SolvePatchPower, entry, &[&layout]))
+}
+
 fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
     let compute = wgpu::ShaderStages::COMPUTE;
-    gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("solve_patch_power"),
-        entries: &[
+    gpu.bind_group_layout(
+        "solve_patch_power",
+        &[
             // 0: BounceParams (patch count, dispatch stride)
             gpu::uniform_entry(0, compute),
             // 1: the receivers' records (`resources::receiver_records`)
@@ -107,7 +115,7 @@ fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
             // 10: per-patch light it would shoot ahead, per unit albedo
             gpu::storage_entry(10, true, compute),
         ],
-    })
+    )
 }
 
 /// Sub-cells to a side of a patch's atlas cell (`SUB_CELLS` in include/bounce.wgsl).
@@ -179,7 +187,10 @@ mod tests {
         };
         let members = vec![1, 5, 2, 3, 0, 4];
         let patches = Patches {
-            patches: vec![Patch { first: 0, count: 5, ..Default::default() }, Patch { first: 5, count: 1, ..Default::default() }],
+            patches: vec![
+                Patch { first: 0, count: 5, ..Default::default() },
+                Patch { first: 5, count: 1, ..Default::default() },
+            ],
             members,
             texel_patch: Vec::new(),
             cell: 4,

@@ -75,7 +75,7 @@ impl Select {
                 &r.patch_overshoot,
             ],
         );
-        Select { pipeline: gpu.compute_pipeline(Shader::SolveSelect, "main", &[&layout]), group, stats }
+        Select { pipeline: pipeline(gpu), group, stats }
     }
 
     /// Chooses the batch's shooters (after the power pass).
@@ -91,11 +91,16 @@ impl Select {
     }
 }
 
+/// The pass's pipeline (built once per device, `solve::warm`).
+pub(super) fn pipeline(gpu: &Gpu) -> wgpu::ComputePipeline {
+    gpu.compute_pipeline(Shader::SolveSelect, "main", &[&bind_group_layout(gpu)])
+}
+
 fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
     let compute = wgpu::ShaderStages::COMPUTE;
-    gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("solve_select"),
-        entries: &[
+    gpu.bind_group_layout(
+        "solve_select",
+        &[
             // 0: BounceParams
             gpu::uniform_entry(0, compute),
             // 1: patches
@@ -119,7 +124,7 @@ fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
             // 10: per-patch light it would shoot ahead, per unit albedo (written)
             gpu::storage_entry(10, false, compute),
         ],
-    })
+    )
 }
 
 #[cfg(test)]
@@ -147,6 +152,10 @@ mod tests {
                 overshoot
             }
         );
-        assert_mirrors!(Shader::SolveSelect, "BounceStats", GpuStats { unshot, received, shot, shooters, landing, unsettled });
+        assert_mirrors!(
+            Shader::SolveSelect,
+            "BounceStats",
+            GpuStats { unshot, received, shot, shooters, landing, unsettled }
+        );
     }
 }

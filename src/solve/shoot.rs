@@ -108,16 +108,15 @@ impl Shoot {
         let layout = bind_group_layout(gpu);
         let group = bind_group(gpu, &layout, r, &b, group_shooters);
         let scales = SlotScales::new(gpu, &b.slot_scales);
-        let (near_dispatch_layout, near_dispatch_group) = near_dispatch_bindings(gpu, &b);
-        let pipeline =
-            |entry, layouts: &[&wgpu::BindGroupLayout]| gpu.compute_pipeline(Shader::SolveShoot, entry, layouts);
+        let near_dispatch_group = near_dispatch_bind_group(gpu, &b);
+        let [measure, finish, main, near_dispatch, near_field] = pipelines(gpu);
         let shooter_count = r.dispatch.shooter_count;
         Shoot {
-            measure: pipeline("measure", &[&layout]),
-            finish: pipeline("finish", &[&layout, &scales.write_layout]),
-            main: pipeline("main", &[&layout, &scales.read_layout]),
-            near_dispatch: pipeline("near_dispatch", &[&near_dispatch_layout]),
-            near_field: pipeline("near_field", &[&layout]),
+            measure,
+            finish,
+            main,
+            near_dispatch,
+            near_field,
             group,
             scales,
             near_dispatch_group,
@@ -169,9 +168,9 @@ impl Shoot {
 /// normalization and the near field.
 fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
     let compute = wgpu::ShaderStages::COMPUTE;
-    gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("solve_shoot"),
-        entries: &[
+    gpu.bind_group_layout(
+        "solve_shoot",
+        &[
             // 0: BounceParams
             gpu::uniform_entry(0, compute),
             // 1: the receivers' records (`resources::receiver_records`)
@@ -199,7 +198,7 @@ fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
             // 16: the receivers in the gather's order (by patch)
             gpu::storage_entry(16, true, compute),
         ],
-    })
+    )
 }
 
 fn bind_group(
@@ -236,23 +235,25 @@ fn bind_group(
 /// The slots' form-factor scales: written by `finish`, read by `main` as a
 /// uniform buffer, so in a group of each one's own.
 struct SlotScales {
-    write_layout: wgpu::BindGroupLayout,
     write_group: wgpu::BindGroup,
-    read_layout: wgpu::BindGroupLayout,
     read_group: wgpu::BindGroup,
 }
 
 impl SlotScales {
-    fn new(gpu: &Gpu, slot_scales: &wgpu::Buffer) -> SlotScales {
+    /// The layouts of the group `finish` writes the scales through and of
+    /// the one `main` reads them through.
+    fn layouts(gpu: &Gpu) -> [wgpu::BindGroupLayout; 2] {
         let compute = wgpu::ShaderStages::COMPUTE;
-        let layout = |label, entry| {
-            gpu.device
-                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries: &[entry] })
-        };
-        // 1: the scales (written by `finish`)
-        let write_layout = layout("solve_shoot slot scales (written)", gpu::storage_entry(1, false, compute));
-        // 0: the scales (read by `main`)
-        let read_layout = layout("solve_shoot slot scales", gpu::uniform_entry(0, compute));
+        [
+            // 1: the scales (written by `finish`)
+            gpu.bind_group_layout("solve_shoot slot scales (written)", &[gpu::storage_entry(1, false, compute)]),
+            // 0: the scales (read by `main`)
+            gpu.bind_group_layout("solve_shoot slot scales", &[gpu::uniform_entry(0, compute)]),
+        ]
+    }
+
+    fn new(gpu: &Gpu, slot_scales: &wgpu::Buffer) -> SlotScales {
+        let [write_layout, read_layout] = Self::layouts(gpu);
         let group = |label, layout, binding| {
             gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some(label),
@@ -262,31 +263,49 @@ impl SlotScales {
         };
         let write_group = group("solve_shoot slot scales (written)", &write_layout, 1);
         let read_group = group("solve_shoot slot scales", &read_layout, 0);
-        SlotScales { write_layout, write_group, read_layout, read_group }
+        SlotScales { write_group, read_group }
     }
 }
 
-/// `near_dispatch`'s bindings, apart from the shots' group: its output is
+/// The pass's pipelines: `measure`, `finish`, `main`, `near_dispatch` and
+/// `near_field` (built once per device, `solve::warm`).
+pub(super) fn pipelines(gpu: &Gpu) -> [wgpu::ComputePipeline; 5] {
+    let layout = bind_group_layout(gpu);
+    let [write_scales, read_scales] = SlotScales::layouts(gpu);
+    let near_dispatch = near_dispatch_layout(gpu);
+    let pipeline = |entry, layouts: &[&wgpu::BindGroupLayout]| gpu.compute_pipeline(Shader::SolveShoot, entry, layouts);
+    [
+        pipeline("measure", &[&layout]),
+        pipeline("finish", &[&layout, &write_scales]),
+        pipeline("main", &[&layout, &read_scales]),
+        pipeline("near_dispatch", &[&near_dispatch]),
+        pipeline("near_field", &[&layout]),
+    ]
+}
+
+/// `near_dispatch`'s own group, apart from the shots' group: its output is
 /// the near-field pass's indirect arguments, which no bind group of that
 /// pass may hold.
-fn near_dispatch_bindings(gpu: &Gpu, b: &Buffers) -> (wgpu::BindGroupLayout, wgpu::BindGroup) {
+fn near_dispatch_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
     let compute = wgpu::ShaderStages::COMPUTE;
-    let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("solve_shoot near_dispatch"),
-        entries: &[
+    gpu.bind_group_layout(
+        "solve_shoot near_dispatch",
+        &[
             // 10: the near-field list (its count)
             gpu::storage_entry(10, false, compute),
             // 12: the workgroup counts (written)
             gpu::storage_entry(12, false, compute),
         ],
-    });
-    let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+    )
+}
+
+fn near_dispatch_bind_group(gpu: &Gpu, b: &Buffers) -> wgpu::BindGroup {
+    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("solve_shoot near_dispatch"),
-        layout: &layout,
+        layout: &near_dispatch_layout(gpu),
         entries: &[
             wgpu::BindGroupEntry { binding: 10, resource: b.near_list.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 12, resource: b.near_args.as_entire_binding() },
         ],
-    });
-    (layout, group)
+    })
 }

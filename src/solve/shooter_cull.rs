@@ -59,23 +59,11 @@ impl ShooterCull {
         let none = wgpu::BufferUsages::empty();
         let bounds = gpu.storage_buffer("solve_shooter_cull groups", &groups, none);
         let group_shooters = gpu.zeroed_storage_buffer::<u32>("solve_shooter_cull masks", groups.len(), none);
-        let compute = wgpu::ShaderStages::COMPUTE;
-        let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("solve_shooter_cull"),
-            entries: &[
-                // 0: BounceParams (shooter count, receiver offset; row stride of this dispatch)
-                gpu::uniform_entry(0, compute),
-                // 1: the batch's shooters
-                gpu::uniform_entry(1, compute),
-                // 2: each group's bounds, 3: each group's slots (written)
-                gpu::storage_entry(2, true, compute),
-                gpu::storage_entry(3, false, compute),
-            ],
-        });
+        let layout = bind_group_layout(gpu);
         let group =
             gpu::bind_buffers(gpu, "solve_shooter_cull", &layout, &[&params, shooters, &bounds, &group_shooters]);
         ShooterCull {
-            pipeline: gpu.compute_pipeline(Shader::SolveShooterCull, "main", &[&layout]),
+            pipeline: pipeline(gpu),
             group,
             dispatch,
             group_shooters,
@@ -88,6 +76,27 @@ impl ShooterCull {
         pass.set_bind_group(0, &self.group, &[]);
         pass.dispatch_workgroups(self.dispatch.0, self.dispatch.1, 1);
     }
+}
+
+/// The pass's pipeline (built once per device, `solve::warm`).
+pub(super) fn pipeline(gpu: &Gpu) -> wgpu::ComputePipeline {
+    gpu.compute_pipeline(Shader::SolveShooterCull, "main", &[&bind_group_layout(gpu)])
+}
+
+fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
+    let compute = wgpu::ShaderStages::COMPUTE;
+    gpu.bind_group_layout(
+        "solve_shooter_cull",
+        &[
+            // 0: BounceParams (shooter count, receiver offset; row stride of this dispatch)
+            gpu::uniform_entry(0, compute),
+            // 1: the batch's shooters
+            gpu::uniform_entry(1, compute),
+            // 2: each group's bounds, 3: each group's slots (written)
+            gpu::storage_entry(2, true, compute),
+            gpu::storage_entry(3, false, compute),
+        ],
+    )
 }
 
 /// How close to a shooter's plane a receiver lies in it

@@ -70,9 +70,9 @@ fn rasterize(gpu: &Gpu, mesh: &Mesh, corners: &wgpu::Buffer, width: u32, height:
     );
     let ratios = gpu.storage_buffer("texelize area ratios", &mesh.area_ratio, wgpu::BufferUsages::empty());
     let stages = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
-    let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("texelize_raster"),
-        entries: &[
+    let layout = gpu.bind_group_layout(
+        "texelize_raster",
+        &[
             // 0: RasterParams (atlas size, dilation)
             gpu::uniform_entry(0, stages),
             // 1: triangle corners in texel units, three per triangle
@@ -80,7 +80,7 @@ fn rasterize(gpu: &Gpu, mesh: &Mesh, corners: &wgpu::Buffer, width: u32, height:
             // 2: world area per UV area, one per triangle
             gpu::storage_entry(2, true, wgpu::ShaderStages::VERTEX),
         ],
-    });
+    );
     let bind_group = gpu::bind_buffers(gpu, "texelize_raster", &layout, &[&params, corners, &ratios]);
     let pipelines = RasterPipelines::new(gpu, &layout);
     draw(gpu, &pipelines, &bind_group, mesh.corners.len() as u32, targets);
@@ -235,9 +235,9 @@ fn interpolate(
     };
     let compute = wgpu::ShaderStages::COMPUTE;
     let unfilterable = wgpu::TextureSampleType::Float { filterable: false };
-    let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("texelize_attributes"),
-        entries: &[
+    let layout = gpu.bind_group_layout(
+        "texelize_attributes",
+        &[
             // 0: AttributeParams (atlas size, band rows)
             gpu::uniform_entry(0, compute),
             // 1: nearest triangle id + 1 per texel
@@ -258,7 +258,7 @@ fn interpolate(
             gpu::texture_array_entry(9, compute, gpu::FILTERABLE),
             gpu::sampler_entry(10, compute),
         ],
-    });
+    );
     let pipeline = gpu.compute_pipeline(Shader::TexelizeAttributes, "main", &[&layout]);
     let views = [&targets.triangle, &targets.bary, &targets.area].map(|t| t.create_view(&Default::default()));
 

@@ -151,10 +151,7 @@ impl GpuScene {
             crate::gpu::texture_array_entry(3, compute, crate::gpu::FILTERABLE),
             crate::gpu::sampler_entry(4, compute),
         ];
-        gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("trace scene"),
-            entries: &entries,
-        })
+        gpu.bind_group_layout("trace scene", &entries)
     }
 
     /// The scene's bind group (`bind_group_layout`).

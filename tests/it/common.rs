@@ -259,3 +259,8 @@ pub fn inside_of(sphere: &MeshData, keep: impl Fn(glam::Vec3) -> bool) -> MeshDa
     }
     part
 }
+
+/// A 64×64 image whose left half (u < 0.5) is `left` and right half `right`.
+pub fn halves(left: [u8; 4], right: [u8; 4]) -> image::RgbaImage {
+    image::RgbaImage::from_fn(64, 64, |x, _| image::Rgba(if x < 32 { left } else { right }))
+}

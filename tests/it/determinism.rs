@@ -2,6 +2,8 @@
 //! adapter: the bake (direct light and bounces) and every file export writes.
 
 use crate::common;
+use bake::fixtures::{MeshData, Placement, SceneBuilder};
+use glam::{Quat, Vec3};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -29,4 +31,40 @@ fn baking_twice_gives_identical_files() {
             eprintln!("{name}: {} bytes, identical", bytes.len());
         }
     }
+}
+
+/// A ground under a canopy whose +X half is cut out (alpha MASK): its
+/// direct pass needs the pipeline with the alpha test compiled in.
+fn cut_out_canopy(path: &Path) {
+    let mut b = SceneBuilder::new();
+    b.object("ground", &MeshData::plane(4.0, 4.0, 2), [0.5, 0.5, 0.5, 1.0], [0.0; 3], Placement::default());
+    let canopy = b.material("canopy", [0.5, 0.5, 0.5, 1.0], [0.0; 3]);
+    let texture = b.png_texture(&common::halves([128, 128, 128, 255], [128, 128, 128, 0]), 33071);
+    b.base_color_texture(canopy, texture, None);
+    b.alpha_mask(canopy, 0.5);
+    let mesh = b.mesh("canopy", &MeshData::plane(2.0, 2.0, 2), Some(canopy));
+    let over = Placement::at(Vec3::new(0.0, 0.5, 0.0)).rotated(Quat::from_rotation_x(180f32.to_radians()));
+    b.node("canopy", mesh, over);
+    std::fs::write(path, b.to_glb()).unwrap();
+}
+
+/// A run of several scenes builds each pass's pipelines once and reuses them
+/// (`gpu::built`; the unit test `a_pipeline_is_built_once_per_device_and_constants`
+/// checks their keys): a scene baked after another, whose direct pass needs
+/// another pipeline (cut-outs), gets the bytes it gets alone.
+#[test]
+fn a_scene_baked_after_another_in_one_run_gets_the_files_it_gets_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let canopy = dir.path().join("canopy.glb");
+    cut_out_canopy(&canopy);
+    let files = |out: &Path, inputs: &[&Path]| {
+        let extra: Vec<&str> = inputs[1..].iter().map(|p| p.to_str().unwrap()).collect();
+        let output = common::tiny_bake(inputs[0], out, &extra);
+        assert!(output.status.success(), "{}", common::stderr(&output));
+        ["canopy.glb", "canopy.lightmap0.exr"].map(|name| std::fs::read(out.join(name)).unwrap())
+    };
+    let alone = files(&dir.path().join("alone"), &[&canopy]);
+    let after = files(&dir.path().join("after"), &[&common::fixture("corner.glb"), &canopy]);
+    assert!(alone[0] == after[0], "canopy.glb differs when baked after corner.glb");
+    assert!(alone[1] == after[1], "its lightmap differs when baked after corner.glb");
 }

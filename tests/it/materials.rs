@@ -15,11 +15,6 @@ fn solid(color: [u8; 4]) -> RgbaImage {
     RgbaImage::from_pixel(4, 4, Rgba(color))
 }
 
-/// Left half `left`, right half `right` (u < 0.5 and u ≥ 0.5).
-fn halves(left: [u8; 4], right: [u8; 4]) -> RgbaImage {
-    RgbaImage::from_fn(64, 64, |x, _| Rgba(if x < 32 { left } else { right }))
-}
-
 /// A 2×2 m quad facing +Y whose material is built by `dress`.
 fn quad(dress: impl Fn(&mut SceneBuilder, usize)) -> SceneBuilder {
     let mut builder = SceneBuilder::new();
@@ -54,7 +49,7 @@ fn base_colour_texture_is_decoded_from_srgb() {
 fn texture_follows_texcoord_0_and_khr_texture_transform() {
     // The plane's TEXCOORD_0 runs u from 0 at x = −1 to 1 at x = +1.
     let plain = albedos(&quad(|b, m| {
-        let t = b.png_texture(&halves([0, 0, 0, 255], [255, 255, 255, 255]), 33071);
+        let t = b.png_texture(&common::halves([0, 0, 0, 255], [255, 255, 255, 255]), 33071);
         b.base_color_texture(m, t, None);
     }));
     for (p, albedo, _) in &plain {
@@ -67,7 +62,7 @@ fn texture_follows_texcoord_0_and_khr_texture_transform() {
     // uv' = 0.5 + 0.5·uv reads only the white half (texels that are not on
     // the quad's −X edge, whose footprint reaches back across uv' = 0.5).
     let shifted = albedos(&quad(|b, m| {
-        let t = b.png_texture(&halves([0, 0, 0, 255], [255, 255, 255, 255]), 33071);
+        let t = b.png_texture(&common::halves([0, 0, 0, 255], [255, 255, 255, 255]), 33071);
         b.base_color_texture(m, t, Some(json!({ "offset": [0.5, 0.0], "scale": [0.5, 1.0] })));
     }));
     for (p, albedo, _) in shifted.iter().filter(|(p, _, _)| p.x > -0.9) {
@@ -123,7 +118,7 @@ fn a_specular_glossiness_material_bakes_its_diffuse_colour() {
     // KHR_materials_pbrSpecularGlossiness: diffuse factor × diffuse texture
     // is the albedo; the white metal-rough fallback beside it is not.
     let texels = albedos(&quad(|b, m| {
-        let t = b.png_texture(&halves([255, 255, 255, 255], [128, 128, 128, 255]), 33071);
+        let t = b.png_texture(&common::halves([255, 255, 255, 255], [128, 128, 128, 255]), 33071);
         b.specular_glossiness(m, [0.2, 0.4, 0.6, 1.0], Some(t));
     }));
     for (p, albedo, _) in texels.iter().filter(|(p, _, _)| p.x.abs() > 0.3) {
@@ -138,7 +133,7 @@ fn a_specular_glossiness_material_bakes_its_diffuse_colour() {
 fn emissive_texture_scales_emission() {
     let texels = albedos(&quad(|b, m| {
         b.set_emission(m, [4.0, 4.0, 4.0]);
-        let t = b.png_texture(&halves([0, 0, 0, 255], [255, 255, 255, 255]), 33071);
+        let t = b.png_texture(&common::halves([0, 0, 0, 255], [255, 255, 255, 255]), 33071);
         b.emissive_texture(m, t);
     }));
     for (p, _, emission) in texels {
@@ -214,7 +209,8 @@ fn alpha_cut_out_lets_sunlight_through_the_holes() {
 /// Mean L_lm on the ground under a canopy whose texture is opaque on its
 /// −X half and clear on its +X half; `alpha` sets its alpha mode.
 fn ground_under_a_canopy(alpha: Dress) -> (f32, f32, f32) {
-    let texture = |b: &mut SceneBuilder| b.png_texture(&halves([128, 128, 128, 255], [128, 128, 128, 0]), 33071);
+    let texture =
+        |b: &mut SceneBuilder| b.png_texture(&common::halves([128, 128, 128, 255], [128, 128, 128, 0]), 33071);
     common::ground_under_a_canopy(&texture, alpha)
 }
 

@@ -5,6 +5,8 @@
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 use std::path::Path;
 
+use crate::common;
+
 use bake::environment::EnvironmentMap;
 use bake::fixtures::{MeshData, Placement, SceneBuilder};
 use bake::reference::{Estimate, Reference, ReferenceOptions, ReferencePoint, surface_points};
@@ -390,11 +392,6 @@ fn solid(rgba: [u8; 4]) -> RgbaImage {
     RgbaImage::from_pixel(4, 4, Rgba(rgba))
 }
 
-/// Left half `left`, right half `right` (u < 0.5 and u ≥ 0.5).
-fn halves(left: [u8; 4], right: [u8; 4]) -> RgbaImage {
-    RgbaImage::from_fn(64, 64, |x, _| Rgba(if x < 32 { left } else { right }))
-}
-
 /// The sRGB codes of a constant texture colour and their linear values.
 const CODES: [u8; 3] = [188, 128, 64];
 
@@ -412,7 +409,7 @@ fn textured_closed_room_converges_to_the_geometric_series() {
     // The second case reads TEXCOORD_1, which the room lacks: like the bake,
     // the reference reads it as (0, 0), here moved by the offset into the
     // texture's coloured right half (its white left half would make ρ_g = 1).
-    let two_tone = halves([255; 4], [r, g, b, 255]);
+    let two_tone = common::halves([255; 4], [r, g, b, 255]);
     let missing_set = json!({ "texCoord": 1, "offset": [0.75, 0.5] });
     for (name, image, transform) in
         [("TEXCOORD_0", &colour, None), ("missing TEXCOORD_1", &two_tone, Some(missing_set))]
@@ -460,7 +457,7 @@ fn emissive_texture_scales_the_form_factor() {
     // by symmetry (bilinear filtering blends the seam antisymmetrically).
     let cases = [
         ("constant colour", solid([r, g, b, 255]), linear.map(|l| le as f64 * f * l)),
-        ("half black, half white", halves([0, 0, 0, 255], [255; 4]), [le as f64 * f / 2.0; 3]),
+        ("half black, half white", common::halves([0, 0, 0, 255], [255; 4]), [le as f64 * f / 2.0; 3]),
     ];
     for (name, texture, expected) in cases {
         let scene = textured_emitter(le, &texture);
@@ -479,7 +476,7 @@ fn a_cut_out_emitter_glows_only_where_it_is_solid() {
     let le = 3.0f32;
     let mut builder = SceneBuilder::new();
     let material = builder.material("canopy", [0.0, 0.0, 0.0, 1.0], [le; 3]);
-    let t = builder.png_texture(&halves([0, 0, 0, 255], [0, 0, 0, 0]), 33071);
+    let t = builder.png_texture(&common::halves([0, 0, 0, 255], [0, 0, 0, 0]), 33071);
     builder.base_color_texture(material, t, None);
     builder.alpha_mask(material, 0.5);
     let mesh = builder.mesh("canopy", &MeshData::plane(2.0, 2.0, 2), Some(material));
@@ -525,7 +522,7 @@ fn alpha_cut_outs_let_the_sky_through() {
     let clear = solid([0, 0, 0, 0]);
     // Solid where u < 0.5, cut out where u ≥ 0.5. A point on the axis sees
     // the solid half with half the view factor, by symmetry.
-    let half = halves([0, 0, 0, 255], [0, 0, 0, 0]);
+    let half = common::halves([0, 0, 0, 255], [0, 0, 0, 0]);
     let cases: [(&str, f32, Option<TextureSetup>, f64); 7] = [
         ("texture alpha 1", 1.0, Some((&opaque, clamp, None)), full),
         ("texture alpha 0", 1.0, Some((&clear, clamp, None)), 0.0),
