@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The "Current figures" at the top of BENCHMARKS.md: the README's bake by
-stage, the fixtures' error against the CPU path tracer with the solve's
-time, Table 4's cells at 256² and the direct pass against its bare-kernel
+stage, a run of several scenes against a run of each, the fixtures' error
+against the CPU path tracer with the solve's time, Table 4's cells at 256² and the direct pass against its bare-kernel
 ceiling there (`cargo bench --bench table4`), each with the commit, date
 and adapter it ran on.
 
@@ -78,6 +78,24 @@ def probe_line(binary, work):
     return (f"**Light probes** (the README's bake with `--probes 0.25`): {counts} = {p['probes']:,} probes "
             f"({p['buried']:,} buried), {p['rays']:,} gather rays and {p['lights']:,} light rays each, "
             f"{p['seconds']:.2f} s ({rays / p['seconds'] / 1e6:.1f} M rays/s).")
+
+
+def several_line(binary, work):
+    """One run of the three fixtures against a run of each alone: a run
+    builds each pipeline once (`gpu::built`), so later scenes skip it."""
+    args = ["--env", "fixtures/sky_sun.exr", "--max-atlas-size", "64"]
+    inputs = [f"fixtures/{f}.glb" for f in FIXTURES]
+    report, wall = bake(binary, [*inputs, *args], os.path.join(work, "several"))
+    scene_seconds = lambda scene: sum(s["seconds"] for s in scene["stages"])
+    together = [scene_seconds(s) for s in report["scenes"]]
+    alone, alone_wall = [], 0.0
+    for fixture, path in zip(FIXTURES, inputs):
+        one, one_wall = bake(binary, [path, *args], os.path.join(work, f"alone-{fixture}"))
+        alone.append(scene_seconds(one["scenes"][0]))
+        alone_wall += one_wall
+    per_scene = ", ".join(f"{f} {t:.2f} s ({a:.2f} s alone)" for f, t, a in zip(FIXTURES, together, alone))
+    return (f"**A run of several scenes** (the three fixtures in one run, 64², sky_sun, defaults): {wall:.2f} s wall "
+            f"against {alone_wall:.2f} s for a run of each; per scene, import to export: {per_scene}.")
 
 
 def accuracy_rows(binary, envs, work):
@@ -181,6 +199,8 @@ def section(binary, env_dir, table4_sizes):
             *stage_table(readme, wall),
             "",
             probe_line(binary, work),
+            "",
+            several_line(binary, work),
             "",
             "**Error against the CPU path tracer** (each fixture at 128², 256 lights; relative RMSE over 512 texels "
             "× 4,096 paths, `--reference 512 --reference-samples 4096`):",
