@@ -339,8 +339,7 @@ impl Gpu {
     }
 
     /// Builds the named shader (with the pieces of `shaders/include/` it
-    /// uses prepended).
-    /// Built once per device.
+    /// uses prepended), once per device.
     pub fn shader(&self, shader: Shader) -> wgpu::ShaderModule {
         self.built.module(shader, || {
             self.device.create_shader_module(wgpu::ShaderModuleDescriptor {

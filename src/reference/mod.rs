@@ -118,9 +118,9 @@ use crate::trace::rays::Triangle;
 use crate::trace::surfaces::{Surfaces, Textures, texture};
 use crate::trace::texture::Texture;
 use emitters::Emitters;
-pub use probes::{Probes, ReferenceCheck, reference_probes};
 #[cfg(feature = "internals")]
 pub use probes::reference_probes_within;
+pub use probes::{Probes, ReferenceCheck, reference_probes};
 use sampling::EnvSampler;
 
 /// Samples per independent random stream (see the module's "Determinism").

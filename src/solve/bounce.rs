@@ -709,7 +709,8 @@ mod tests {
     fn the_ambient_term_is_every_later_bounce_of_the_unshot_light_summed() {
         // Unshot power U lands with probability f, is reflected with ρ, lands
         // again with f...: the scene receives U f Σ (ρ f)^k over its area.
-        let series = |u: f64, f: f64, rho: f64, area: f64| (0..2000).map(|k| u * f * (rho * f).powi(k)).sum::<f64>() / area;
+        let series =
+            |u: f64, f: f64, rho: f64, area: f64| (0..2000).map(|k| u * f * (rho * f).powi(k)).sum::<f64>() / area;
         for (f, albedo) in [(1.0, [0.5, 0.25, 0.8]), (0.3, [0.9, 0.0, 0.6]), (0.75, [0.1, 0.1, 0.1])] {
             let got = ambient_term([2.0, 3.0, 0.5, 0.0], f, albedo, 4.0);
             for (c, u) in [2.0, 3.0, 0.5].into_iter().enumerate() {
@@ -791,7 +792,10 @@ mod tests {
     fn a_patch_covers_the_area_weighted_mean_of_its_texels() {
         let set = texels(&[1.0, 3.0, 2.0]);
         let patches = Patches {
-            patches: vec![Patch { first: 0, count: 2, ..Default::default() }, Patch { first: 2, count: 1, ..Default::default() }],
+            patches: vec![
+                Patch { first: 0, count: 2, ..Default::default() },
+                Patch { first: 2, count: 1, ..Default::default() },
+            ],
             members: vec![0, 1, 2],
             texel_patch: vec![0, 0, 1],
             cell: 1,

@@ -112,15 +112,7 @@ impl HemicubeCull {
             &[&params, &casters.vertices, hemicube_faces, &indices, &draws, &triangle_solid, &solids],
         );
         let [cull, write_draws] = pipelines(gpu);
-        Some(HemicubeCull {
-            cull,
-            write_draws,
-            indices,
-            draws,
-            group,
-            groups,
-            faces,
-        })
+        Some(HemicubeCull { cull, write_draws, indices, draws, group, groups, faces })
     }
 
     /// Lists the batch's faces (after its shooters are chosen) and writes their draws.

@@ -217,7 +217,11 @@ mod tests {
             let (head, member) = (&ordered[k - m.offset as usize], &ordered[k]);
             let cos = cos_between(head, member);
             // Within four cube texels' widths (2/32 of a face each) of the cluster's first.
-            assert!(cos > (4.0f32 * 2.0 / 32.0).cos(), "light {k} is {}° from its cluster's first", cos.acos().to_degrees());
+            assert!(
+                cos > (4.0f32 * 2.0 / 32.0).cos(),
+                "light {k} is {}° from its cluster's first",
+                cos.acos().to_degrees()
+            );
             assert_eq!(k / WORD, (k - m.offset as usize) / WORD, "the cluster of light {k} spans two words");
         }
     }

@@ -56,13 +56,7 @@ impl PatchPower {
             entries: &entries,
         });
         let [power, shooter_cells] = pipelines(gpu);
-        PatchPower {
-            power,
-            shooter_cells,
-            group,
-            groups,
-            shooter_count: r.dispatch.shooter_count,
-        }
+        PatchPower { power, shooter_cells, group, groups, shooter_count: r.dispatch.shooter_count }
     }
 
     /// Sums every patch's unshot power.

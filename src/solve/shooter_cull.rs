@@ -62,12 +62,7 @@ impl ShooterCull {
         let layout = bind_group_layout(gpu);
         let group =
             gpu::bind_buffers(gpu, "solve_shooter_cull", &layout, &[&params, shooters, &bounds, &group_shooters]);
-        ShooterCull {
-            pipeline: pipeline(gpu),
-            group,
-            dispatch,
-            group_shooters,
-        }
+        ShooterCull { pipeline: pipeline(gpu), group, dispatch, group_shooters }
     }
 
     /// Writes each group's slots for the batch's shooters.

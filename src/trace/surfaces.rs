@@ -81,7 +81,9 @@ impl Surfaces {
         // Per material: whether its triangles' UV sets are read (vertex
         // colours add some with `Textures::All`).
         let textured: Vec<bool> = match textures {
-            Textures::CutOuts => cut_outs.iter().map(|c| c.as_ref().is_some_and(|c| c.base_texture.is_some())).collect(),
+            Textures::CutOuts => {
+                cut_outs.iter().map(|c| c.as_ref().is_some_and(|c| c.base_texture.is_some())).collect()
+            }
             Textures::All => materials.iter().map(|m| samples_an_image(m, &image_slots)).collect(),
         };
         let needs_corners = |material: u32, p: &ScenePrimitive| {
