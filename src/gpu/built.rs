@@ -15,7 +15,7 @@ use super::Shader;
 
 /// What makes a compute pipeline: the shader, its entry point, the values
 /// of its `override` constants (as bits) and its bind-group layouts.
-#[derive(Clone, PartialEq, Eq, Hash)]
+#[derive(PartialEq, Eq, Hash)]
 struct PipelineKey {
     shader: Shader,
     entry: String,

@@ -362,6 +362,14 @@ fn lights_grazing_the_horizon_by_a_rounding_error_end_their_rays() {
     assert!(brightest < 1e-4, "the ground took {brightest} from lights below its horizon");
 }
 
+/// A black bowl: the lower half of a unit sphere's inside.
+fn black_bowl() -> SceneBuilder {
+    let bowl = common::inside_of(&MeshData::sphere(1.0, 48, 24), |c| c.y < 0.0);
+    let mut builder = SceneBuilder::new();
+    builder.object("bowl", &bowl, [0.0, 0.0, 0.0, 1.0], [0.0; 3], Placement::default());
+    builder
+}
+
 /// A CPU driver ends a shader's loops after 65,535 turns in all: the direct
 /// pass must see where that cut a point short and gather it again, or the
 /// point keeps a walk's or a light's share unfinished. Inside a black bowl
@@ -372,9 +380,7 @@ fn lights_grazing_the_horizon_by_a_rounding_error_end_their_rays() {
 #[test]
 fn points_a_loop_limit_cuts_short_get_all_their_light() {
     let gpu = common::gpu();
-    let bowl = common::inside_of(&MeshData::sphere(1.0, 48, 24), |c| c.y < 0.0);
-    let mut builder = SceneBuilder::new();
-    builder.object("bowl", &bowl, [0.0, 0.0, 0.0, 1.0], [0.0; 3], Placement::default());
+    let builder = black_bowl();
     let lights = common::lights(&EnvironmentMap::from_fn(64, 32, |_| [1.0; 3]), LightMode::Budget { count: 1024 });
     let bake_in_batches = |batch_size| {
         let mut options = common::options(24);
@@ -414,9 +420,7 @@ fn points_a_loop_limit_cuts_short_get_all_their_light() {
 #[test]
 fn texels_of_a_concave_surface_beside_a_shadow_edge_keep_their_light() {
     let gpu = common::gpu();
-    let bowl = common::inside_of(&MeshData::sphere(1.0, 48, 24), |c| c.y < 0.0);
-    let mut builder = SceneBuilder::new();
-    builder.object("bowl", &bowl, [0.0, 0.0, 0.0, 1.0], [0.0; 3], Placement::default());
+    let builder = black_bowl();
     let sun_direction = Vec3::new(40f32.to_radians().cos(), 40f32.to_radians().sin(), 0.0);
     let cos_radius = 0.5f32.to_radians().cos();
     let sun = EnvironmentMap::from_fn(2048, 1024, |d| {
