@@ -64,6 +64,15 @@ struct ShooterCells {
 // so that a group of 64 lies in one or two atlas cells, whose bounds
 // leave out more shooters than a run along an atlas row.
 @group(0) @binding(16) var<storage, read> members: array<u32>;
+// The groups of 64 that `main` gathers this batch, one a workgroup
+// (solve_shooter_cull): a count (after one word the cull fills it with),
+// then the groups.
+struct GatheredGroups {
+    filling: u32,
+    count: u32,
+    groups: array<u32>,
+}
+@group(0) @binding(17) var<storage, read> gathered: GatheredGroups;
 
 // The batch's shooters' scales by slot, as `finish` leaves them: read by
 // `main` as a uniform buffer, for the reason the shooters are one, and
@@ -301,13 +310,22 @@ fn sub_cell_form_factor(texel: Texel, s: Shooter, k: u32, c: u32) -> f32 {
     return square_form_factor(texel.position, texel.normal, centroid, normal, area, s.half_u);
 }
 
-// The far field of every receiver; receivers in some shooter's near field
-// are listed for `near_field`. A CPU driver runs both sides of every branch
+// The far field of the receivers in the groups `solve_shooter_cull`
+// listed (the rest take no light and shoot none); receivers in some
+// shooter's near field are listed for `near_field`. A CPU driver runs both sides of every branch
 // for all lanes, so the exact polygon form factor, needed by a few texels
 // near each shooter, would otherwise cost every texel-shooter pair.
 @compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) id: vec3<u32>) {
-    let j = id.x + id.y * params.row_stride;
+fn main(
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let listed = workgroup.x + workgroup.y * groups.x;
+    if (listed >= gathered.count) {
+        return;
+    }
+    let j = gathered.groups[listed] * 64u + lid;
     if (j >= params.texel_count) {
         return;
     }

@@ -10,6 +10,11 @@
 // group's bounding box and cone of normals hold every texel's, widened by
 // half of `in_plane` for rounding): a slot left out gives none of its
 // texels light.
+//
+// It also lists the groups `main` gathers at all, which it dispatches over:
+// in an open scene about half the groups take light from no shooter of a
+// batch, and a CPU driver pays each invocation's dispatch and reads even
+// where it returns at once.
 
 // A group's texels: the box of their positions and the cone of their
 // shading normals (cos_spread −1: any direction). Mirrors
@@ -28,6 +33,21 @@ struct ReceiverGroup {
 @group(0) @binding(2) var<storage, read> groups: array<ReceiverGroup>;
 // Per group: bit k set when slot k may light one of its texels (written).
 @group(0) @binding(3) var<storage, read_write> group_shooters: array<u32>;
+// Per group: the lowest and highest patch of its texels (`members` runs by patch).
+@group(0) @binding(4) var<storage, read> group_patches: array<vec2u>;
+// Per group: 1 where its texels' record of light received (`unshot`'s w)
+// may be other than 0, having taken light from a slot in the last batch.
+@group(0) @binding(5) var<storage, read_write> group_received: array<u32>;
+// The groups `solve_shoot`'s `main` gathers this batch (`GatheredGroups`
+// there): their count as the list fills, the count for `main`, the list.
+struct GroupList {
+    filling: atomic<u32>,
+    count: u32,
+    groups: array<u32>,
+}
+@group(0) @binding(6) var<storage, read_write> gathered: GroupList;
+// `main`'s workgroup counts (x, y, z) for `solve_shoot`'s `main`.
+@group(0) @binding(7) var<storage, read_write> gather_args: array<u32, 3>;
 
 // Whether shooter `s` can light any texel of group `g`: one must lie in
 // front of its plane (by more than `params.in_plane`), and face its centroid.
@@ -60,12 +80,37 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let group = groups[g];
+    let patches = group_patches[g];
     var mask = 0u;
+    var shooting = false;
     for (var k = 0u; k < params.shooter_count; k++) {
         let s = shooters.items[k];
         if (s.patch_index != NO_TRIANGLE && may_light(group, s)) {
             mask |= 1u << k;
         }
+        shooting = shooting || (s.patch_index >= patches.x && s.patch_index <= patches.y);
     }
     group_shooters[g] = mask;
+    // `main` visits the group where a slot may light it, where a patch of
+    // it shoots (its unshot light leaves), and where it clears the record
+    // of what its texels received in the last batch.
+    if (mask != 0u || shooting || group_received[g] != 0u) {
+        gathered.groups[atomicAdd(&gathered.filling, 1u)] = g;
+    }
+    group_received[g] = select(0u, 1u, mask != 0u);
+}
+
+// Workgroups per dimension every adapter allows (WebGPU's minimum limit).
+const MAX_GROUPS_PER_DIMENSION: u32 = 65535u;
+
+// `main`'s workgroups from the list's length, on the GPU; the list empties
+// for the next batch.
+@compute @workgroup_size(1)
+fn gather_dispatch() {
+    let count = atomicExchange(&gathered.filling, 0u);
+    gathered.count = count;
+    let x = min(count, MAX_GROUPS_PER_DIMENSION);
+    gather_args[0] = x;
+    gather_args[1] = select(1u, (count + x - 1u) / x, x > 0u);
+    gather_args[2] = 1u;
 }

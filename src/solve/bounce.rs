@@ -498,14 +498,15 @@ impl Passes {
     ) -> Passes {
         let resources = Resources::new(gpu, inputs, params, dispatch);
         let hemicube = Hemicube::new(gpu, scene, &resources);
+        let (texels, order) = (&inputs.texels.texels, &inputs.order.members);
         let shooter_cull =
-            ShooterCull::new(gpu, &inputs.texels.texels, &inputs.order.members, params, &resources.shooters);
+            ShooterCull::new(gpu, texels, order, &inputs.patches.texel_patch, params, &resources.shooters);
         let (casters, faces) = (&hemicube.casters, &resources.hemicube_faces);
         let cull = HemicubeCull::new(gpu, casters, faces, 5 * dispatch.shooter_count, params.near, face_list_bytes);
         Passes {
             power: PatchPower::new(gpu, &resources, inputs.order),
             select: Select::new(gpu, &resources, inputs),
-            shoot: Shoot::new(gpu, &resources, inputs, &shooter_cull.group_shooters, normalized),
+            shoot: Shoot::new(gpu, &resources, inputs, &shooter_cull, normalized),
             cull,
             hemicube,
             shooter_cull,
@@ -541,8 +542,8 @@ impl Passes {
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
             self.shooter_cull.record(&mut pass);
-            self.shoot.record_far_field(&mut pass);
         }
+        self.shoot.record_far_field(&mut encoder);
         self.shoot.record_near_field(&mut encoder);
         gpu.queue.submit([encoder.finish()]);
     }

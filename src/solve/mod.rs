@@ -90,7 +90,7 @@ pub fn warm(gpu: &Gpu, stop: &AtomicBool) {
         |gpu| drop(patch_power::pipelines(gpu)),
         |gpu| drop(select::pipeline(gpu)),
         |gpu| drop(hemicube_cull::pipelines(gpu)),
-        |gpu| drop(shooter_cull::pipeline(gpu)),
+        |gpu| drop(shooter_cull::pipelines(gpu)),
         |gpu| drop(shoot::pipelines(gpu)),
     ];
     for step in steps {

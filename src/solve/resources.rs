@@ -58,14 +58,13 @@ impl BounceParams {
 }
 
 /// How each batch is laid out: shooters, hemicube faces in the depth
-/// atlas, and workgroups over the texels and over the patches.
+/// atlas, and workgroups over the patches.
 #[derive(Clone, Copy)]
 pub(super) struct Dispatch {
     pub(super) shooter_count: u32,
     pub(super) face: u32,
     pub(super) tiles_per_row: u32,
     pub(super) tile_rows: u32,
-    pub(super) groups: (u32, u32),
     pub(super) patch_groups: (u32, u32),
 }
 
@@ -106,7 +105,7 @@ pub(super) fn params(
         _pad: [0; 1],
         overshoot: [0.0; 4],
     };
-    (params, Dispatch { shooter_count, face, tiles_per_row, tile_rows, groups, patch_groups })
+    (params, Dispatch { shooter_count, face, tiles_per_row, tile_rows, patch_groups })
 }
 
 /// The radius of the scene's bounding sphere about the centre of its

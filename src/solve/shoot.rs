@@ -8,6 +8,7 @@
 
 use super::bounce::MAX_SHOOTERS;
 use super::resources::{Inputs, Resources};
+use super::shooter_cull::ShooterCull;
 use crate::gpu::{self, Gpu, Shader};
 
 /// Texels one workgroup of the form-factor measure pass sums
@@ -36,11 +37,12 @@ pub(super) struct Shoot {
     near_args: wgpu::Buffer,
     /// Whether each patch's form factors are normalized (`measure`, `finish`).
     normalized: bool,
-    /// Workgroups of `measure` (texel chunks × groups of slots), of
-    /// `finish` (one a slot) and of `main` (over the texels).
+    /// Workgroups of `measure` (texel chunks × groups of slots) and of
+    /// `finish` (one a slot).
     measure_groups: (u32, u32),
     shooter_count: u32,
-    groups: (u32, u32),
+    /// `main`'s workgroup counts, one a listed group (`shooter_cull`).
+    gather_args: wgpu::Buffer,
 }
 
 /// The buffers only the gather binds.
@@ -91,14 +93,8 @@ impl Buffers {
 }
 
 impl Shoot {
-    /// `group_shooters`: each texel group's slots (`shooter_cull`'s).
-    pub(super) fn new(
-        gpu: &Gpu,
-        r: &Resources,
-        inputs: &Inputs,
-        group_shooters: &wgpu::Buffer,
-        normalized: bool,
-    ) -> Shoot {
+    /// `cull`: each texel group's slots, and the groups to gather.
+    pub(super) fn new(gpu: &Gpu, r: &Resources, inputs: &Inputs, cull: &ShooterCull, normalized: bool) -> Shoot {
         let b = Buffers::new(gpu, inputs, r.params.chunk_count);
         if !normalized {
             // Every patch's scale known (1): the measure and finish passes skip.
@@ -106,7 +102,7 @@ impl Shoot {
             gpu.queue.write_buffer(&b.patch_scale, 0, bytemuck::cast_slice(&ones));
         }
         let layout = bind_group_layout(gpu);
-        let group = bind_group(gpu, &layout, r, &b, group_shooters);
+        let group = bind_group(gpu, &layout, r, &b, cull);
         let scales = SlotScales::new(gpu, &b.slot_scales);
         let near_dispatch_group = near_dispatch_bind_group(gpu, &b);
         let [measure, finish, main, near_dispatch, near_field] = pipelines(gpu);
@@ -125,7 +121,7 @@ impl Shoot {
             normalized,
             measure_groups: (r.params.chunk_count, shooter_count.div_ceil(MEASURE_SLOTS)),
             shooter_count,
-            groups: r.dispatch.groups,
+            gather_args: cull.gather_args.clone(),
         }
     }
 
@@ -134,10 +130,11 @@ impl Shoot {
         encoder.clear_buffer(&self.near_list, 0, Some(8));
     }
 
-    /// The normalization where it applies, the far field of every receiver,
-    /// and the size of the near-field pass, into the pass `shooter_cull`
-    /// recorded its slots in.
-    pub(super) fn record_far_field(&self, pass: &mut wgpu::ComputePass) {
+    /// The normalization where it applies, the far field of the groups
+    /// `shooter_cull` listed, and the size of the near-field pass, in a pass
+    /// after the cull's, which wrote `main`'s workgroup counts.
+    pub(super) fn record_far_field(&self, encoder: &mut wgpu::CommandEncoder) {
+        let mut pass = encoder.begin_compute_pass(&Default::default());
         pass.set_bind_group(0, &self.group, &[]);
         if self.normalized {
             pass.set_pipeline(&self.measure);
@@ -148,7 +145,7 @@ impl Shoot {
         }
         pass.set_pipeline(&self.main);
         pass.set_bind_group(1, &self.scales.read_group, &[]);
-        pass.dispatch_workgroups(self.groups.0, self.groups.1, 1);
+        pass.dispatch_workgroups_indirect(&self.gather_args, 0);
         pass.set_pipeline(&self.near_dispatch);
         pass.set_bind_group(0, &self.near_dispatch_group, &[]);
         pass.dispatch_workgroups(1, 1, 1);
@@ -197,6 +194,8 @@ fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
             gpu::storage_entry(15, true, compute),
             // 16: the receivers in the gather's order (by patch)
             gpu::storage_entry(16, true, compute),
+            // 17: the groups `main` gathers (solve_shooter_cull)
+            gpu::storage_entry(17, true, compute),
         ],
     )
 }
@@ -206,7 +205,7 @@ fn bind_group(
     layout: &wgpu::BindGroupLayout,
     r: &Resources,
     b: &Buffers,
-    group_shooters: &wgpu::Buffer,
+    cull: &ShooterCull,
 ) -> wgpu::BindGroup {
     fn buffer(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
         wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
@@ -226,8 +225,9 @@ fn bind_group(
             buffer(10, &b.near_list),
             buffer(11, &r.shooter_cells),
             buffer(14, &r.chosen),
-            buffer(15, group_shooters),
+            buffer(15, &cull.group_shooters),
             buffer(16, &r.members),
+            buffer(17, &cull.gathered),
         ],
     })
 }
