@@ -65,8 +65,8 @@ struct ShooterCells {
 // leave out more shooters than a run along an atlas row.
 @group(0) @binding(16) var<storage, read> members: array<u32>;
 // The groups of 64 that `main` gathers this batch, one a workgroup
-// (solve_shooter_cull): a count (after one word the cull fills it with),
-// then the groups.
+// (solve_shooter_cull): the word the cull counts in as it fills the list,
+// their count, then the groups.
 struct GatheredGroups {
     filling: u32,
     count: u32,
@@ -311,8 +311,9 @@ fn sub_cell_form_factor(texel: Texel, s: Shooter, k: u32, c: u32) -> f32 {
 }
 
 // The far field of the receivers in the groups `solve_shooter_cull`
-// listed (the rest take no light and shoot none); receivers in some
-// shooter's near field are listed for `near_field`. A CPU driver runs both sides of every branch
+// listed (the others take no light, shoot none and have no record of
+// light received to clear); receivers in some shooter's near field are
+// listed for `near_field`. A CPU driver runs both sides of every branch
 // for all lanes, so the exact polygon form factor, needed by a few texels
 // near each shooter, would otherwise cost every texel-shooter pair.
 @compute @workgroup_size(64)

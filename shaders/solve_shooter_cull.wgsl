@@ -36,7 +36,9 @@ struct ReceiverGroup {
 // Per group: the lowest and highest patch of its texels (`members` runs by patch).
 @group(0) @binding(4) var<storage, read> group_patches: array<vec2u>;
 // Per group: 1 where its texels' record of light received (`unshot`'s w)
-// may be other than 0, having taken light from a slot in the last batch.
+// may be other than 0: in the last batch a slot may have lit it, or a patch
+// of its own shot (a curved one lights itself where it is concave,
+// `near_light` in solve_shoot.wgsl).
 @group(0) @binding(5) var<storage, read_write> group_received: array<u32>;
 // The groups `solve_shoot`'s `main` gathers this batch (`GatheredGroups`
 // there): their count as the list fills, the count for `main`, the list.
@@ -97,7 +99,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if (mask != 0u || shooting || group_received[g] != 0u) {
         gathered.groups[atomicAdd(&gathered.filling, 1u)] = g;
     }
-    group_received[g] = select(0u, 1u, mask != 0u);
+    group_received[g] = select(0u, 1u, mask != 0u || shooting);
 }
 
 // Workgroups per dimension every adapter allows (WebGPU's minimum limit).
