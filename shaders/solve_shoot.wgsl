@@ -405,18 +405,12 @@ fn near_radiance(texel: Texel, s: Shooter, k: u32) -> vec3f {
 
 // The near-field pass's workgroup counts (x, y, z) for `near_field`.
 @group(0) @binding(12) var<storage, read_write> near_args: array<u32, 3>;
-// Workgroups per dimension every adapter allows (WebGPU's minimum limit).
-const MAX_GROUPS_PER_DIMENSION: u32 = 65535u;
-
 // Sizes the near-field pass from the list `main` wrote, on the GPU: one
 // workgroup per 64 listed receivers, in rows as `near_field` reads them.
 @compute @workgroup_size(1)
 fn near_dispatch() {
-    let groups = (atomicLoad(&near_list.count) + 63u) / 64u;
-    let x = min(groups, MAX_GROUPS_PER_DIMENSION);
-    near_args[0] = x;
-    near_args[1] = select(1u, (groups + x - 1u) / x, x > 0u);
-    near_args[2] = 1u;
+    let args = dispatch_rows((atomicLoad(&near_list.count) + 63u) / 64u);
+    near_args = array<u32, 3>(args.x, args.y, args.z);
 }
 
 // The listed receivers' near-field light, added after `main`'s far field,

@@ -102,17 +102,12 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     group_received[g] = select(0u, 1u, mask != 0u || shooting);
 }
 
-// Workgroups per dimension every adapter allows (WebGPU's minimum limit).
-const MAX_GROUPS_PER_DIMENSION: u32 = 65535u;
-
 // `main`'s workgroups from the list's length, on the GPU; the list empties
 // for the next batch.
 @compute @workgroup_size(1)
 fn gather_dispatch() {
     let count = atomicExchange(&gathered.filling, 0u);
     gathered.count = count;
-    let x = min(count, MAX_GROUPS_PER_DIMENSION);
-    gather_args[0] = x;
-    gather_args[1] = select(1u, (count + x - 1u) / x, x > 0u);
-    gather_args[2] = 1u;
+    let args = dispatch_rows(count);
+    gather_args = array<u32, 3>(args.x, args.y, args.z);
 }

@@ -1,4 +1,4 @@
-// Progressive-refinement records and helpers: Patch, Shooter, ShooterBatch, BounceParams, BounceStats, sub-cells, luminance. Needs texel.wgsl.
+// Progressive-refinement records and helpers: Patch, Shooter, ShooterBatch, BounceParams, BounceStats, sub-cells, luminance, indirect dispatches. Needs texel.wgsl.
 
 // A shooter patch. Mirrors `patches::Patch`.
 struct Patch {
@@ -52,7 +52,7 @@ struct BounceParams {
     texel_count: u32,
     patch_count: u32,
     shooter_count: u32,    // slots per batch
-    row_stride: u32,       // invocations per dispatch row
+    row_stride: u32,       // invocations per dispatch row (`with_row_stride`; 0 in the shared buffer)
     face_size: f32,        // hemicube face width, texels
     tiles_per_row: u32,    // hemicubes per row of the depth atlas
     far: f32,              // distance that maps to depth 1, metres
@@ -140,4 +140,15 @@ struct BounceStats {
 
 fn luminance(c: vec3f) -> f32 {
     return dot(c, vec3f(0.2126, 0.7152, 0.0722));
+}
+
+// Workgroups per dimension every adapter allows (WebGPU's minimum limit).
+const MAX_GROUPS_PER_DIMENSION: u32 = 65535u;
+
+// An indirect dispatch's workgroup counts (x, y, z) for `groups`
+// workgroups, in rows of at most MAX_GROUPS_PER_DIMENSION: a pass reads
+// its workgroup's place as x + y · num_workgroups.x.
+fn dispatch_rows(groups: u32) -> vec3<u32> {
+    let x = min(groups, MAX_GROUPS_PER_DIMENSION);
+    return vec3<u32>(x, select(1u, (groups + x - 1u) / x, x > 0u), 1u);
 }

@@ -83,13 +83,14 @@ pub(super) fn params(
     let tiles_per_row = ((gpu.limits.max_texture_dimension_2d / (3 * face)).max(1)).min(shooter_count);
     let tile_rows = shooter_count.div_ceil(tiles_per_row);
     let texel_world = 1.0 / texels_per_unit.max(1e-30);
-    let groups = gpu.dispatch_size(texels.texels.len() as u32, 64);
     let patch_groups = gpu.dispatch_size(patches.patches.len() as u32, 64);
     let params = BounceParams {
         texel_count: texels.texels.len() as u32,
         patch_count: patches.patches.len() as u32,
         shooter_count,
-        row_stride: groups.0 * 64,
+        // No pass dispatches over the shared buffer's rows: each that
+        // dispatches in rows has its own copy (`with_row_stride`).
+        row_stride: 0,
         face_size: face as f32,
         tiles_per_row,
         far: 2.0 * radius,
