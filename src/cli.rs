@@ -197,6 +197,11 @@ pub struct Args {
     #[arg(long)]
     pub plot: bool,
 
+    /// Wait on the GPU after each pass of the bounce pass's batches and record each pass's seconds in
+    /// report.json (scenes[].bounce.passes): slower, for profiling; the lightmaps are the same
+    #[arg(long)]
+    pub time_passes: bool,
+
     /// Estimate N texels with the CPU reference path tracer before solving, and record the bake's
     /// error at them (relative RMSE) at every point of the convergence trace (slow: N × the samples)
     #[arg(long, value_name = "N", value_parser = clap::builder::RangedI64ValueParser::<usize>::new().range(1..=65536))]
@@ -354,6 +359,7 @@ impl Args {
                     max_shots: self.max_shots,
                     max_seconds: self.max_time,
                     patches: self.patches,
+                    time_passes: self.time_passes,
                     ..BounceOptions::default()
                 },
                 ..SolveOptions::default()

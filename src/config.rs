@@ -99,6 +99,7 @@ impl From<&Config> for OptionsReport {
             dilation: bake.export.dilation,
             adapter: config.adapter.clone(),
             plot: config.report.plot,
+            time_passes: bake.solve.bounce.time_passes,
             reference_texels: bake.reference.as_ref().map_or(0, |r| r.texels),
             reference_samples: bake.reference.as_ref().map_or(0, |r| r.samples),
             probe_spacing: bake.probes.as_ref().map(|p| p.spacing),

@@ -26,9 +26,10 @@ use crate::texelize::TexelSet;
 /// Version of the report's layout; bumped on any change to it. Version 4
 /// added a primitive's `instance` and the scene's `contact`, version 5 the
 /// scene's `punctual`, version 6 the direct pass's `rays` in place of its
-/// shadow-map size (and the option with it); `bake check` still reads
+/// shadow-map size (and the option with it), version 8 the bounce pass's
+/// `passes` and the option `time_passes`; `bake check` still reads
 /// version 3.
-pub const SCHEMA_VERSION: u32 = 7;
+pub const SCHEMA_VERSION: u32 = 8;
 
 /// The oldest version `bake check` reads: every later change only added
 /// optional fields.
@@ -117,6 +118,9 @@ pub struct OptionsReport {
     pub dilation: u32,
     pub adapter: Option<String>,
     pub plot: bool,
+    /// `--time-passes`: each bounce pass's seconds were recorded.
+    #[serde(default)]
+    pub time_passes: bool,
     /// `--reference`: texels estimated by the CPU reference (0: none).
     pub reference_texels: usize,
     pub reference_samples: u32,

@@ -66,6 +66,7 @@ use serde::{Deserialize, Serialize};
 
 use super::hemicube::Hemicube;
 use super::hemicube_cull::HemicubeCull;
+use super::pass_times::{self, PassSeconds, PassTimes};
 use super::patch_power::{PatchPower, SubCellOrder};
 use super::patches::Patches;
 use super::resources::{self, BounceParams, Dispatch, Inputs, Resources};
@@ -114,6 +115,9 @@ pub struct BounceOptions {
     /// Texels whose error against a reference is recorded at every trace
     /// point (`--reference`); `None`: not measured.
     pub probes: Option<std::sync::Arc<Probes>>,
+    /// Wait on the GPU after each pass of every batch and record its seconds
+    /// (`--time-passes`; slower, the same result).
+    pub time_passes: bool,
 }
 
 impl Default for BounceOptions {
@@ -127,6 +131,7 @@ impl Default for BounceOptions {
             hemicube_size: 128,
             face_list_bytes: 64 << 20,
             probes: None,
+            time_passes: false,
         }
     }
 }
@@ -180,6 +185,9 @@ pub struct BounceStats {
     /// covered share (skipped where the scene catches little of its light).
     pub normalized: bool,
     pub trace: Vec<TracePoint>,
+    /// Seconds each GPU pass took over the run, with `--time-passes`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub passes: Option<Vec<PassSeconds>>,
 }
 
 /// Why the bounce pass stopped. The report writes it as it always has
@@ -276,6 +284,7 @@ pub fn run(
 
     let max_shots = options.max_shots.unwrap_or(64 * patches.patches.len() as u64);
     let mut tally = Tally::new(start, sums.gathered);
+    tally.passes = options.time_passes.then(PassTimes::default);
     let (stopped_by, last) = shoot_until_done(gpu, &passes, &sums, &mut tally, options, max_shots, progress)?;
 
     let values: Vec<[f32; 4]> = read_buffer(gpu, &passes.resources.lightmap, texels.texels.len())?;
@@ -313,6 +322,7 @@ pub fn run(
         ambient,
         normalized,
         trace: tally.trace,
+        passes: tally.passes.map(PassTimes::into_vec),
     })
 }
 
@@ -329,7 +339,11 @@ fn shoot_until_done(
 ) -> Result<(StopReason, GpuStats)> {
     loop {
         // Sum and select on the GPU; read back only the totals.
+        let select_start = Instant::now();
         let stats = passes.select(gpu)?;
+        if let Some(times) = &mut tally.passes {
+            times.add("select", select_start.elapsed().as_secs_f64());
+        }
         let settled = tally.record(gpu, &stats, sums, &passes.resources, options.probes.as_deref())?;
         // Converged when the unshot light, each patch's weighted by how much
         // of its hemisphere the scene covers, is a `tolerance` share of the
@@ -345,7 +359,7 @@ fn shoot_until_done(
         if options.max_seconds.is_some_and(|max| tally.start.elapsed().as_secs_f64() >= max) {
             return Ok((StopReason::MaxTime, stats));
         }
-        passes.shoot(gpu);
+        passes.shoot(gpu, tally.passes.as_mut())?;
         tally.shots += stats.shooters as u64;
         tally.shot_total += stats.shot[3] as f64;
         tally.batches += 1;
@@ -426,6 +440,8 @@ struct Tally {
     probe_seconds: f64,
     /// The first batch's coverage-weighted unshot power: the light put in.
     landing_in: Option<f64>,
+    /// Each pass's seconds, with `--time-passes`.
+    passes: Option<PassTimes>,
 }
 
 impl Tally {
@@ -441,6 +457,7 @@ impl Tally {
             gathered,
             probe_seconds: 0.0,
             landing_in: None,
+            passes: None,
         }
     }
 
@@ -530,22 +547,33 @@ impl Passes {
 
     /// Renders the chosen shooters' hemicubes and gathers their light at
     /// every texel: the far field everywhere, then the near field where
-    /// `main` listed it.
-    fn shoot(&self, gpu: &Gpu) {
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        self.shoot.clear_near_list(&mut encoder);
-        // What each hemicube face of the batch draws (None: every caster).
-        if let Some(cull) = &self.cull {
-            cull.record(&mut encoder);
-        }
-        self.hemicube.render(&mut encoder, &self.resources, self.cull.as_ref());
-        {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            self.shooter_cull.record(&mut pass);
-        }
-        self.shoot.record_far_field(&mut encoder);
-        self.shoot.record_near_field(&mut encoder);
-        gpu.queue.submit([encoder.finish()]);
+    /// `main` listed it; in one submission, or each pass timed (`times`).
+    fn shoot(&self, gpu: &Gpu, times: Option<&mut PassTimes>) -> Result<()> {
+        let cull = |encoder: &mut wgpu::CommandEncoder| {
+            self.shoot.clear_near_list(encoder);
+            // What each hemicube face of the batch draws (None: every caster).
+            if let Some(cull) = &self.cull {
+                cull.record(encoder);
+            }
+        };
+        let render = |encoder: &mut wgpu::CommandEncoder| {
+            self.hemicube.render(encoder, &self.resources, self.cull.as_ref());
+        };
+        let shooter_cull = |encoder: &mut wgpu::CommandEncoder| {
+            self.shooter_cull.record(&mut encoder.begin_compute_pass(&Default::default()));
+        };
+        let measure = |encoder: &mut wgpu::CommandEncoder| self.shoot.record_measure(encoder);
+        let far_field = |encoder: &mut wgpu::CommandEncoder| self.shoot.record_far_field(encoder);
+        let near_field = |encoder: &mut wgpu::CommandEncoder| self.shoot.record_near_field(encoder);
+        let passes: [pass_times::Recorder; 6] = [
+            ("hemicube cull", &cull),
+            ("hemicube render", &render),
+            ("shooter cull", &shooter_cull),
+            ("form-factor measure", &measure),
+            ("far field", &far_field),
+            ("near field", &near_field),
+        ];
+        pass_times::submit(gpu, &passes, times)
     }
 }
 

@@ -24,6 +24,7 @@ mod hemicube_cull;
 mod light_clusters;
 mod occluders;
 mod overlaps;
+pub mod pass_times;
 mod patch_power;
 pub mod patches;
 pub mod punctual;

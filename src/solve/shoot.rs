@@ -130,19 +130,27 @@ impl Shoot {
         encoder.clear_buffer(&self.near_list, 0, Some(8));
     }
 
-    /// The normalization where it applies, the far field of the groups
-    /// `shooter_cull` listed, and the size of the near-field pass, in a pass
-    /// after the cull's, which wrote `main`'s workgroup counts.
+    /// Where the form factors are normalized, their sums for each patch
+    /// shooting for the first time, and its scale.
+    pub(super) fn record_measure(&self, encoder: &mut wgpu::CommandEncoder) {
+        if !self.normalized {
+            return;
+        }
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        pass.set_bind_group(0, &self.group, &[]);
+        pass.set_pipeline(&self.measure);
+        pass.dispatch_workgroups(self.measure_groups.0, self.measure_groups.1, 1);
+        pass.set_pipeline(&self.finish);
+        pass.set_bind_group(1, &self.scales.write_group, &[]);
+        pass.dispatch_workgroups(self.shooter_count, 1, 1);
+    }
+
+    /// The far field of the groups `shooter_cull` listed and the size of
+    /// the near-field pass, in a pass after the cull's, which wrote `main`'s
+    /// workgroup counts.
     pub(super) fn record_far_field(&self, encoder: &mut wgpu::CommandEncoder) {
         let mut pass = encoder.begin_compute_pass(&Default::default());
         pass.set_bind_group(0, &self.group, &[]);
-        if self.normalized {
-            pass.set_pipeline(&self.measure);
-            pass.dispatch_workgroups(self.measure_groups.0, self.measure_groups.1, 1);
-            pass.set_pipeline(&self.finish);
-            pass.set_bind_group(1, &self.scales.write_group, &[]);
-            pass.dispatch_workgroups(self.shooter_count, 1, 1);
-        }
         pass.set_pipeline(&self.main);
         pass.set_bind_group(1, &self.scales.read_group, &[]);
         pass.dispatch_workgroups_indirect(&self.gather_args, 0);

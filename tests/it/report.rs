@@ -346,3 +346,37 @@ fn find_key<'v>(value: &'v Value, key: &str) -> Option<&'v Value> {
         _ => None,
     }
 }
+
+#[test]
+fn time_passes_records_each_bounce_pass_and_leaves_the_lightmap_as_it_was() {
+    let dir = tempfile::tempdir().unwrap();
+    let exr = dir.path().join("out/sphere_on_ground.lightmap0.exr");
+    bake_fixture(dir.path(), &["-q"]);
+    let plain = std::fs::read(&exr).unwrap();
+    let report: Value = serde_json::from_slice(&std::fs::read(dir.path().join("out/report.json")).unwrap()).unwrap();
+    assert!(report["scenes"][0]["bounce"].get("passes").is_none(), "no pass times unless asked");
+
+    bake_fixture(dir.path(), &["-q", "--time-passes"]);
+    assert!(std::fs::read(&exr).unwrap() == plain, "waiting after each pass changed the lightmap");
+    let report: Value = serde_json::from_slice(&std::fs::read(dir.path().join("out/report.json")).unwrap()).unwrap();
+    let found = schema_errors(&[&report]).remove(0);
+    assert!(found.is_empty(), "the timed report does not follow the schema:\n{}", found.join("\n"));
+    assert_eq!(report["options"]["time_passes"], true);
+    let bounce = &report["scenes"][0]["bounce"];
+    let passes = bounce["passes"].as_array().expect("--time-passes records bounce.passes");
+    let names: Vec<&str> = passes.iter().map(|p| p["pass"].as_str().unwrap()).collect();
+    eprintln!("{passes:?}");
+    let expected = [
+        "select",
+        "hemicube cull",
+        "hemicube render",
+        "shooter cull",
+        "form-factor measure",
+        "far field",
+        "near field",
+    ];
+    assert_eq!(names, expected, "every pass, in the order a batch runs them");
+    let timed: f64 = passes.iter().map(|p| p["seconds"].as_f64().unwrap()).sum();
+    let total = bounce["seconds"].as_f64().unwrap();
+    assert!(timed > 0.0 && timed <= total, "the passes' {timed} s against the bounce pass's {total} s");
+}
