@@ -476,8 +476,9 @@ fn slots_needing_scale(lid: u32) -> u32 {
     return workgroupUniformLoad(&slots_to_measure);
 }
 
-// Slots one measure workgroup sums for.
-const MEASURE_SLOTS: u32 = 8u;
+// Slots one measure workgroup sums for (`shoot::measure_slots`): 8 or all
+// 32. The sums are the same either way.
+override MEASURE_SLOTS: u32 = 8u;
 // Texels one invocation of the measure pass sums (`MEASURE_CHUNK` / 64).
 const MEASURE_TURNS: u32 = MEASURE_CHUNK / 64u;
 
@@ -489,12 +490,12 @@ const MEASURE_TURNS: u32 = MEASURE_CHUNK / 64u;
 @compute @workgroup_size(64)
 fn measure(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let base = group.y * MEASURE_SLOTS;
-    let slots = slots_needing_scale(lid) & (((1u << MEASURE_SLOTS) - 1u) << base);
+    let slots = slots_needing_scale(lid) & ((0xffffffffu >> (32u - MEASURE_SLOTS)) << base);
     if (slots == 0u) {
         return;
     }
-    var near = array<f32, MEASURE_SLOTS>();
-    var far = array<f32, MEASURE_SLOTS>();
+    var near = array<f32, MAX_SHOOTERS>();
+    var far = array<f32, MAX_SHOOTERS>();
     // The receivers in a slot's near field, by their turn in the chunk:
     // their exact form factors are summed after the far field, where they
     // cost the few lanes that have them rather than every pair.

@@ -35,6 +35,13 @@ pub struct AdapterDescription {
     pub driver: String,
 }
 
+impl AdapterDescription {
+    /// Whether the adapter is a CPU driver (lavapipe, WARP).
+    pub fn is_cpu(&self) -> bool {
+        self.device_type == format!("{:?}", wgpu::DeviceType::Cpu)
+    }
+}
+
 impl std::fmt::Display for AdapterDescription {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "{} ({}, {}", self.name, self.backend, self.device_type)?;

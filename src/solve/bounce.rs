@@ -115,6 +115,10 @@ pub struct BounceOptions {
     /// Texels whose error against a reference is recorded at every trace
     /// point (`--reference`); `None`: not measured.
     pub probes: Option<std::sync::Arc<Probes>>,
+    /// Shooter slots one workgroup of the form-factor measure sums for, 8 or
+    /// 32 (`None`: chosen for the adapter, `shoot::measure_slots_for`); the
+    /// sums are the same either way.
+    pub measure_slots: Option<u32>,
     /// Wait on the GPU after each pass of every batch and record its seconds
     /// (`--time-passes`; slower, the same result).
     pub time_passes: bool,
@@ -131,6 +135,7 @@ impl Default for BounceOptions {
             hemicube_size: 128,
             face_list_bytes: 64 << 20,
             probes: None,
+            measure_slots: None,
             time_passes: false,
         }
     }
@@ -280,7 +285,7 @@ pub fn run(
     };
     // Without a direct pass (emitters only) the share is unknown: normalize.
     let normalized = sums.initial_closure.is_none_or(|f| f * luminance(sums.mean_albedo) >= NORMALIZE_FROM);
-    let passes = Passes::new(gpu, scene, &inputs, params, dispatch, options.face_list_bytes, normalized);
+    let passes = Passes::new(gpu, scene, &inputs, params, dispatch, options, normalized);
 
     let max_shots = options.max_shots.unwrap_or(64 * patches.patches.len() as u64);
     let mut tally = Tally::new(start, sums.gathered);
@@ -510,7 +515,7 @@ impl Passes {
         inputs: &Inputs,
         params: BounceParams,
         dispatch: Dispatch,
-        face_list_bytes: u64,
+        options: &BounceOptions,
         normalized: bool,
     ) -> Passes {
         let resources = Resources::new(gpu, inputs, params, dispatch);
@@ -519,11 +524,12 @@ impl Passes {
         let shooter_cull =
             ShooterCull::new(gpu, texels, order, &inputs.patches.texel_patch, params, &resources.shooters);
         let (casters, faces) = (&hemicube.casters, &resources.hemicube_faces);
-        let cull = HemicubeCull::new(gpu, casters, faces, 5 * dispatch.shooter_count, params.near, face_list_bytes);
+        let lists = options.face_list_bytes;
+        let cull = HemicubeCull::new(gpu, casters, faces, 5 * dispatch.shooter_count, params.near, lists);
         Passes {
             power: PatchPower::new(gpu, &resources, inputs.order),
             select: Select::new(gpu, &resources, inputs),
-            shoot: Shoot::new(gpu, &resources, inputs, &shooter_cull, normalized),
+            shoot: Shoot::new(gpu, &resources, inputs, &shooter_cull, normalized, options.measure_slots),
             cull,
             hemicube,
             shooter_cull,

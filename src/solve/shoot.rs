@@ -15,10 +15,17 @@ use crate::gpu::{self, Gpu, Shader};
 /// (`MEASURE_CHUNK` in solve_shoot.wgsl).
 pub(super) const MEASURE_CHUNK: u32 = 4096;
 /// Shooter slots one workgroup of the measure pass sums for
-/// (`MEASURE_SLOTS` in solve_shoot.wgsl).
-const MEASURE_SLOTS: u32 = 8;
+/// (`MEASURE_SLOTS` in solve_shoot.wgsl) where it does not take all 32.
+const NARROW_MEASURE_SLOTS: u32 = 8;
+/// A CPU driver's measure workgroups take all 32 slots where the texel
+/// chunks alone give each of its threads (one a core) this many workgroups:
+/// each texel's reads then serve every slot at once (the pass's time fell by
+/// a fifth to a quarter in the closed rooms of BENCHMARKS.md). A GPU keeps
+/// more, narrower workgroups.
+const WIDE_MEASURE_CHUNKS_PER_CORE: u32 = 4;
 
 pub(super) struct Shoot {
+    /// The measure pass for the slots a workgroup takes (`measure_slots_for`).
     measure: wgpu::ComputePipeline,
     finish: wgpu::ComputePipeline,
     main: wgpu::ComputePipeline,
@@ -93,8 +100,16 @@ impl Buffers {
 }
 
 impl Shoot {
-    /// `cull`: each texel group's slots, and the groups to gather.
-    pub(super) fn new(gpu: &Gpu, r: &Resources, inputs: &Inputs, cull: &ShooterCull, normalized: bool) -> Shoot {
+    /// `cull`: each texel group's slots, and the groups to gather;
+    /// `measure_slots`: as `BounceOptions`'.
+    pub(super) fn new(
+        gpu: &Gpu,
+        r: &Resources,
+        inputs: &Inputs,
+        cull: &ShooterCull,
+        normalized: bool,
+        measure_slots: Option<u32>,
+    ) -> Shoot {
         let b = Buffers::new(gpu, inputs, r.params.chunk_count);
         if !normalized {
             // Every patch's scale known (1): the measure and finish passes skip.
@@ -105,8 +120,11 @@ impl Shoot {
         let group = bind_group(gpu, &layout, r, &b, cull);
         let scales = SlotScales::new(gpu, &b.slot_scales);
         let near_dispatch_group = near_dispatch_bind_group(gpu, &b);
-        let [measure, finish, main, near_dispatch, near_field] = pipelines(gpu);
+        let [_, _, finish, main, near_dispatch, near_field] = pipelines(gpu);
         let shooter_count = r.dispatch.shooter_count;
+        let slots =
+            measure_slots.unwrap_or_else(|| measure_slots_for(gpu, r.params.chunk_count)).clamp(1, MAX_SHOOTERS);
+        let measure = measure_pipeline(gpu, slots);
         Shoot {
             measure,
             finish,
@@ -119,7 +137,7 @@ impl Shoot {
             near_list: b.near_list,
             near_args: b.near_args,
             normalized,
-            measure_groups: (r.params.chunk_count, shooter_count.div_ceil(MEASURE_SLOTS)),
+            measure_groups: (r.params.chunk_count, shooter_count.div_ceil(slots)),
             shooter_count,
             gather_args: cull.gather_args.clone(),
         }
@@ -275,15 +293,31 @@ impl SlotScales {
     }
 }
 
-/// The pass's pipelines: `measure`, `finish`, `main`, `near_dispatch` and
-/// `near_field` (built once per device, `solve::warm`).
-pub(super) fn pipelines(gpu: &Gpu) -> [wgpu::ComputePipeline; 5] {
+/// Slots one measure workgroup sums for over `chunk_count` chunks of texels.
+fn measure_slots_for(gpu: &Gpu, chunk_count: u32) -> u32 {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get() as u32);
+    let wide = gpu.adapter.is_cpu() && chunk_count >= WIDE_MEASURE_CHUNKS_PER_CORE * cores;
+    if wide { MAX_SHOOTERS } else { NARROW_MEASURE_SLOTS }
+}
+
+/// The measure pass over `slots` slots a workgroup.
+fn measure_pipeline(gpu: &Gpu, slots: u32) -> wgpu::ComputePipeline {
+    let layout = bind_group_layout(gpu);
+    gpu.compute_pipeline_with(Shader::SolveShoot, "measure", &[&layout], &[("MEASURE_SLOTS", slots as f64)])
+}
+
+/// The pass's pipelines: `measure` over 8 slots a workgroup and over 32
+/// (on a CPU driver), `finish`, `main`, `near_dispatch` and `near_field`
+/// (built once per device, `solve::warm`).
+pub(super) fn pipelines(gpu: &Gpu) -> [wgpu::ComputePipeline; 6] {
     let layout = bind_group_layout(gpu);
     let [write_scales, read_scales] = SlotScales::layouts(gpu);
     let near_dispatch = near_dispatch_layout(gpu);
     let pipeline = |entry, layouts: &[&wgpu::BindGroupLayout]| gpu.compute_pipeline(Shader::SolveShoot, entry, layouts);
+    let wide = if gpu.adapter.is_cpu() { MAX_SHOOTERS } else { NARROW_MEASURE_SLOTS };
     [
-        pipeline("measure", &[&layout]),
+        measure_pipeline(gpu, NARROW_MEASURE_SLOTS),
+        measure_pipeline(gpu, wide),
         pipeline("finish", &[&layout, &write_scales]),
         pipeline("main", &[&layout, &read_scales]),
         pipeline("near_dispatch", &[&near_dispatch]),

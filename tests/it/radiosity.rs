@@ -89,6 +89,34 @@ fn a_converged_closed_room_counts_the_light_it_had_left_to_shoot() {
 }
 
 #[test]
+fn the_form_factor_measure_sums_alike_over_any_slots_a_workgroup() {
+    // A CPU driver's measure workgroups take all 32 shooter slots of a batch
+    // where the texels are many, a GPU's 8: each slot's sums must come out
+    // the same bits either way, or a bake would depend on the adapter's kind
+    // and the scene's size. A room with walls of different albedos, some
+    // glowing, normalizes every patch's form factors at its first shot.
+    let room = six_wall_room([(0.7, 0.0), (0.5, 2.0), (0.2, 0.0), (0.8, 1.0), (0.5, 0.0), (0.6, 0.0)]);
+    let bake_with = |slots: u32| {
+        bake_emitters(&room, 64, |o| {
+            o.solve.bounce.measure_slots = Some(slots);
+            o.solve.bounce.max_shots = Some(512);
+        })
+    };
+    let narrow = bake_with(8);
+    assert!(narrow.solution.bounce.as_ref().is_some_and(|b| b.normalized && b.shots == 512));
+    for slots in [32, 5] {
+        let other = bake_with(slots);
+        let same = narrow
+            .solution
+            .lightmap
+            .iter()
+            .zip(&other.solution.lightmap)
+            .all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits));
+        assert!(same, "{slots} slots a measure workgroup changed the lightmap");
+    }
+}
+
+#[test]
 fn closed_room_with_one_emitting_wall_keeps_the_mean() {
     // Σ A L = Σ A Le + ρ Σ A L in a closed room: mean L = mean Le / (1 − ρ).
     for (rho, tolerance) in [(0.5f32, 0.02f64), (0.95, 0.05)] {
