@@ -28,15 +28,6 @@ SCENES = [
     f"fixtures/corner.glb --env {SKY} --max-atlas-size 128 --lights 256",
     f"fixtures/everything.glb --env {SKY} --max-atlas-size 128",
 ]
-PASSES = [
-    "select",
-    "hemicube cull",
-    "hemicube render",
-    "shooter cull",
-    "form-factor measure",
-    "far field",
-    "near field",
-]
 
 
 def binary(args):
@@ -55,12 +46,11 @@ def timed_bake(bake, scene, out):
         return json.load(f)
 
 
-def row(scene, report):
-    bounce = report["scenes"][0]["bounce"]
+def row(scene, bounce, passes):
     if bounce is None:
-        return f"| {scene} | no bounce pass |" + " |" * (len(PASSES) + 2)
+        return f"| {scene} | no bounce pass |" + " |" * (len(passes) + 3)
     seconds = {p["pass"]: p["seconds"] for p in bounce["passes"]}
-    cells = [f"{seconds.get(p, 0.0):.2f}" for p in PASSES]
+    cells = [f"{seconds.get(p, 0.0):.2f}" for p in passes]
     timed = sum(seconds.values())
     return (f"| {scene} | {bounce['batches']} | {bounce['shots']} | {' | '.join(cells)} | {timed:.2f} | "
             f"{bounce['seconds']:.2f} |")
@@ -73,17 +63,21 @@ def main():
     args = parser.parse_args()
     bake = binary(args)
     head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True)
-    rows = []
+    bounces = []
     adapter = None
     with tempfile.TemporaryDirectory() as work:
         for n, scene in enumerate(args.scene or SCENES):
             report = timed_bake(bake, scene, os.path.join(work, str(n)))
             adapter = report["adapter"]["name"]
-            rows.append(row(scene, report))
+            bounces.append((scene, report["scenes"][0]["bounce"]))
+    # The passes' columns in the order the bakes ran them.
+    passes = []
+    for _, bounce in bounces:
+        passes += [p["pass"] for p in (bounce or {}).get("passes", []) if p["pass"] not in passes]
     print(f"commit {head.stdout.strip()}, adapter {adapter}; seconds over the bounce pass, each pass waited for\n")
-    print("| scene | batches | shots | " + " | ".join(PASSES) + " | sum | bounce |")
-    print("|---" * (len(PASSES) + 5) + "|")
-    print("\n".join(rows))
+    print("| scene | batches | shots | " + " | ".join(passes) + " | sum | bounce |")
+    print("|---" * (len(passes) + 5) + "|")
+    print("\n".join(row(scene, bounce, passes) for scene, bounce in bounces))
 
 
 if __name__ == "__main__":
