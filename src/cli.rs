@@ -198,7 +198,8 @@ pub struct Args {
     pub plot: bool,
 
     /// Wait on the GPU after each pass of the bounce pass's batches and record each pass's seconds in
-    /// report.json (scenes[].bounce.passes): slower, for profiling; the lightmaps are the same
+    /// report.json (scenes[].bounce.passes): slower, for profiling; the lightmaps are the same, unless
+    /// --max-time stops the bounce pass earlier
     #[arg(long)]
     pub time_passes: bool,
 

@@ -120,7 +120,8 @@ pub struct BounceOptions {
     /// sums are the same either way.
     pub measure_slots: Option<u32>,
     /// Wait on the GPU after each pass of every batch and record its seconds
-    /// (`--time-passes`; slower, the same result).
+    /// (`--time-passes`; slower, the same result unless `max_seconds` stops
+    /// the pass sooner).
     pub time_passes: bool,
 }
 
