@@ -476,7 +476,7 @@ fn slots_needing_scale(lid: u32) -> u32 {
     return workgroupUniformLoad(&slots_to_measure);
 }
 
-// Slots one measure workgroup sums for (`shoot::measure_slots`): 8 or all
+// Slots one measure workgroup sums for (`shoot::measure_slots_for`): 8 or all
 // 32. The sums are the same either way.
 override MEASURE_SLOTS: u32 = 8u;
 // Texels one invocation of the measure pass sums (`MEASURE_CHUNK` / 64).
