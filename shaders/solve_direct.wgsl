@@ -15,7 +15,8 @@
 // test, a walk through the hierarchy; and for the last two, whether the
 // cone crosses the face's horizon), and each kind is then gathered in a
 // loop of its own that turns as often as its lane with the most needs and
-// holds only what its kind needs.
+// holds only what its kind needs (the walks: a turn a ray, whatever light
+// it goes to).
 
 @group(0) @binding(0) var<uniform> params: DirectParams;
 // Three records a light: direction and cos α; L·Ω and Ω; sin α, rays, at
@@ -55,6 +56,10 @@ const POLYGON_SLACK: f32 = 1e-4;
 const WALK_CUT: u32 = 2u;
 // Lights a batch holds (`direct::MAX_BATCH`), 32 to a word of bits.
 const WORDS: u32 = 32u;
+// Lights whose rays `main` casts in one loop before adding what they found:
+// their results wait in a private array, kept small (one for a whole batch
+// made the shader far slower for a CPU driver to compile).
+const FOUND: u32 = 64u;
 // `next_bit` past the last light.
 const NO_LIGHT: u32 = 0xffffffffu;
 
@@ -388,17 +393,35 @@ fn polygon_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers)
 fn cone_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers, members: u32) -> f32 {
     var c = cone_rays(l, k, i, members);
     loop {
-        let d = next_direction(c);
-        let leaves = dot(d, p.face_normal) > 0.0;
-        let hits_polygon = meets(b.p0, o, d) || meets(b.p1, o, d);
-        let traced = leaves && !hits_polygon && in_a_cone(b, d);
-        rays_cast += select(0u, 1u, traced);
-        let blocked = hits_polygon || occluded(o, d, 3.0e38, p.triangle, traced);
-        if (count_ray(&c, leaves, blocked)) {
+        if (cast_ray(&c, p, o, b)) {
             break;
         }
     }
     return share_open(c);
+}
+
+// Casts `c`'s next ray: the polygons first, then the hierarchy. True when
+// it was the light's last.
+fn cast_ray(c: ptr<function, ConeRays>, p: Texel, o: vec3f, b: Blockers) -> bool {
+    let d = next_direction(*c);
+    let leaves = dot(d, p.face_normal) > 0.0;
+    let hits_polygon = meets(b.p0, o, d) || meets(b.p1, o, d);
+    let traced = leaves && !hits_polygon && in_a_cone(b, d);
+    rays_cast += select(0u, 1u, traced);
+    let blocked = hits_polygon || occluded(o, d, 3.0e38, p.triangle, traced);
+    return count_ray(c, leaves, blocked);
+}
+
+// The rays of light `k` (NO_LIGHT: none) at point `i`, or of the cluster
+// it heads, to its members among `walking` (`cone_rays`).
+fn walk_rays(k: u32, i: u32, p: Texel, walking: ptr<function, array<u32, WORDS>>) -> ConeRays {
+    let light = select(k, 0u, k == NO_LIGHT);
+    let l = light_at(light, p);
+    var members = 1u;
+    if (CLUSTERS) {
+        members = ((*walking)[light >> 5u] >> (light & 31u)) & ((1u << l.cluster_size) - 1u);
+    }
+    return cone_rays(l, light, i, max(members, 1u));
 }
 
 // A ray through the middle of the part of a light's cone above the face
@@ -548,42 +571,66 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         let l = light_at(light, p);
         add_plain_light_seen(&sums, l, polygon_visibility(l, light, i, p, o, b));
     }
-    // Lights anything may block, a cluster's together: what its rays find
-    // open is each member's share.
+    // Lights anything may block, a cluster's together: their rays in one
+    // loop over FOUND lights at a time, each light's result kept (rays open
+    // and rays leaving the face, a half word each) and then added in the
+    // lights' order. A loop per light would turn as often as its lane with
+    // the most rays, and the lights' loop as often as its lane with the most
+    // lights; this one turns as often as its lane with the most rays in all.
+    var found: array<u32, FOUND>;
+    var rays_walk = bit_walk(walk_words);
     bits = bit_walk(walk_words);
+    var next = next_bit(&rays_walk, &walks);
+    var c = walk_rays(next, i, p, &walking);
     loop {
-        let light = next_bit(&bits, &walks);
-        if (light == NO_LIGHT) {
+        var taken = 0u;
+        loop {
+            if (next == NO_LIGHT || taken == FOUND) {
+                break;
+            }
+            if (cast_ray(&c, p, o, b)) {
+                found[taken] = c.open | (c.leaving << 16u);
+                taken += 1u;
+                next = next_bit(&rays_walk, &walks);
+                c = walk_rays(next, i, p, &walking);
+            }
+        }
+        for (var n = 0u; n < taken; n++) {
+            let light = next_bit(&bits, &walks);
+            let l = light_at(light, p);
+            let rays = found[n];
+            let leaving = rays >> 16u;
+            let open = select(f32(rays & 0xffffu) / f32(leaving), 0.0, leaving == 0u);
+            if (CLUSTERS) {
+                let shift = light & 31u;
+                let members = (walking[light >> 5u] >> shift) & ((1u << l.cluster_size) - 1u);
+                // Members above the face, then those across its horizon (few,
+                // and their share of the cone above the face costs more).
+                var across = members & (blocked_crossing[light >> 5u] >> shift);
+                var above = members & ~across;
+                loop {
+                    if (above == 0u) {
+                        break;
+                    }
+                    let member = firstTrailingBit(above);
+                    above &= above - 1u;
+                    add_plain_light_seen(&sums, light_at(light + member, p), open);
+                }
+                loop {
+                    if (across == 0u) {
+                        break;
+                    }
+                    let member = firstTrailingBit(across);
+                    across &= across - 1u;
+                    add_light(&sums, light_at(light + member, p), open);
+                }
+            } else {
+                add_plain_light_seen(&sums, l, open);
+            }
+        }
+        if (next == NO_LIGHT) {
             finished += 1u;
             break;
-        }
-        let l = light_at(light, p);
-        if (CLUSTERS) {
-            let shift = light & 31u;
-            let members = (walking[light >> 5u] >> shift) & ((1u << l.cluster_size) - 1u);
-            let open = cone_visibility(l, light, i, p, o, b, members);
-            // Members above the face, then those across its horizon (few,
-            // and their share of the cone above the face costs more).
-            var across = members & (blocked_crossing[light >> 5u] >> shift);
-            var above = members & ~across;
-            loop {
-                if (above == 0u) {
-                    break;
-                }
-                let member = firstTrailingBit(above);
-                above &= above - 1u;
-                add_plain_light_seen(&sums, light_at(light + member, p), open);
-            }
-            loop {
-                if (across == 0u) {
-                    break;
-                }
-                let member = firstTrailingBit(across);
-                across &= across - 1u;
-                add_light(&sums, light_at(light + member, p), open);
-            }
-        } else {
-            add_plain_light_seen(&sums, l, cone_visibility(l, light, i, p, o, b, 1u));
         }
     }
     // Without clusters, lights something may block that cross the face's
