@@ -370,8 +370,8 @@ fn count_ray(c: ptr<function, ConeRays>, leaves: bool, blocked: bool) -> bool {
 }
 
 // Of the rays that leave the face, the share that met nothing.
-fn share_open(c: ConeRays) -> f32 {
-    return select(f32(c.open) / f32(c.leaving), 0.0, c.leaving == 0u);
+fn share_open(open: u32, leaving: u32) -> f32 {
+    return select(f32(open) / f32(leaving), 0.0, leaving == 0u);
 }
 
 // Of light `l`'s rays at point `i` that leave the face, the share that
@@ -384,7 +384,7 @@ fn polygon_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers)
             break;
         }
     }
-    return share_open(c);
+    return share_open(c.open, c.leaving);
 }
 
 // Of light `l`'s rays at point `i` that leave the face (or its cluster's,
@@ -397,7 +397,7 @@ fn cone_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers, me
             break;
         }
     }
-    return share_open(c);
+    return share_open(c.open, c.leaving);
 }
 
 // Casts `c`'s next ray: the polygons first, then the hierarchy. True when
@@ -417,11 +417,13 @@ fn cast_ray(c: ptr<function, ConeRays>, p: Texel, o: vec3f, b: Blockers) -> bool
 fn walk_rays(k: u32, i: u32, p: Texel, walking: ptr<function, array<u32, WORDS>>) -> ConeRays {
     let light = select(k, 0u, k == NO_LIGHT);
     let l = light_at(light, p);
-    var members = 1u;
-    if (CLUSTERS) {
-        members = ((*walking)[light >> 5u] >> (light & 31u)) & ((1u << l.cluster_size) - 1u);
-    }
-    return cone_rays(l, light, i, max(members, 1u));
+    return cone_rays(l, light, i, max(select(1u, members_walking(light, l, walking), CLUSTERS), 1u));
+}
+
+// The members of the cluster light `head` (`l`) starts that walk, a bit
+// each from the head's.
+fn members_walking(head: u32, l: Light, walking: ptr<function, array<u32, WORDS>>) -> u32 {
+    return ((*walking)[head >> 5u] >> (head & 31u)) & ((1u << l.cluster_size) - 1u);
 }
 
 // A ray through the middle of the part of a light's cone above the face
@@ -598,12 +600,10 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         for (var n = 0u; n < taken; n++) {
             let light = next_bit(&bits, &walks);
             let l = light_at(light, p);
-            let rays = found[n];
-            let leaving = rays >> 16u;
-            let open = select(f32(rays & 0xffffu) / f32(leaving), 0.0, leaving == 0u);
+            let open = share_open(found[n] & 0xffffu, found[n] >> 16u);
             if (CLUSTERS) {
                 let shift = light & 31u;
-                let members = (walking[light >> 5u] >> shift) & ((1u << l.cluster_size) - 1u);
+                let members = members_walking(light, l, &walking);
                 // Members above the face, then those across its horizon (few,
                 // and their share of the cone above the face costs more).
                 var across = members & (blocked_crossing[light >> 5u] >> shift);
