@@ -387,11 +387,11 @@ fn polygon_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers)
     return share_open(c.open, c.leaving);
 }
 
-// Of light `l`'s rays at point `i` that leave the face (or its cluster's,
-// to the `members` it heads), the share that meet nothing: the polygons
-// first, then the hierarchy.
-fn cone_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers, members: u32) -> f32 {
-    var c = cone_rays(l, k, i, members);
+// Of light `l`'s rays at point `i` that leave the face, the share that
+// meet nothing: the polygons first, then the hierarchy (a cluster's rays
+// are cast in `main`'s loop of walks).
+fn cone_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers) -> f32 {
+    var c = cone_rays(l, k, i, 1u);
     loop {
         if (cast_ray(&c, p, o, b)) {
             break;
@@ -644,7 +644,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             break;
         }
         let l = light_at(light, p);
-        add_light(&sums, l, cone_visibility(l, light, i, p, o, b, 1u));
+        add_light(&sums, l, cone_visibility(l, light, i, p, o, b));
     }
     if (trace_cut) {
         atomicOr(&status[0], WALK_CUT);
