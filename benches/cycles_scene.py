@@ -1,6 +1,7 @@
 """Scenes for benches/cycles.py that the fixtures lack, written as GLB at run
 time: a closed room lit through a window (colour bleeding) and a closed room
-lit only by an emissive ceiling panel. glTF world, +Y up, metres; every
+lit only by an emissive ceiling panel; and, for timing the direct pass on a
+dense mesh, a rolling terrain. glTF world, +Y up, metres; every
 surface is a one-sided quad facing into the room (bake and Cycles' material
 in cycles.py both treat back faces as black, light-blocking surfaces)."""
 
@@ -60,6 +61,15 @@ class Glb:
                       "NORMAL": self._accessor(np.array(nrm, np.float32), "VEC3", 34962),
                       "TEXCOORD_0": self._accessor(np.array(uv, np.float32), "VEC2", 34962)}
         indices = self._accessor(np.array(idx, np.uint32), "SCALAR", 34963)
+        self.gltf["meshes"].append({"name": name, "primitives": [
+            {"attributes": attributes, "indices": indices, "material": material}]})
+        self.gltf["nodes"].append({"name": name, "mesh": len(self.gltf["meshes"]) - 1})
+        self.gltf["scenes"][0]["nodes"].append(len(self.gltf["nodes"]) - 1)
+
+    def triangles(self, name, positions, indices, material):
+        """One primitive from a (n, 3) position array and a flat index array."""
+        attributes = {"POSITION": self._accessor(np.asarray(positions, np.float32), "VEC3", 34962)}
+        indices = self._accessor(np.asarray(indices, np.uint32), "SCALAR", 34963)
         self.gltf["meshes"].append({"name": name, "primitives": [
             {"attributes": attributes, "indices": indices, "material": material}]})
         self.gltf["nodes"].append({"name": name, "mesh": len(self.gltf["meshes"]) - 1})
@@ -144,4 +154,21 @@ def emitter_room(path):
     g.mesh("walls", [faces["-x"], faces["+x"], faces["+z"]], white)
     g.mesh("box", box((1.2, 0.4, 0.5), (0.8, 0.8, 0.8)), white)
     g.mesh("tall box", box((-1.3, 0.9, -0.8), (0.6, 1.8, 0.6)), yellow)
+    g.write(path)
+
+
+def rolling_terrain(path, cells=300):
+    """A 20 × 20 m heightfield of cells × cells quads (180,000 triangles at
+    300), rolling ±0.5 m with wavelengths of about 9 and 10 m: a surface that
+    crosses the plane of almost every point on it many times."""
+    g = Glb()
+    ground = g.material("ground", (0.5, 0.45, 0.35))
+    t = np.linspace(-10.0, 10.0, cells + 1)
+    x, z = np.meshgrid(t, t, indexing="ij")
+    y = 0.5 * np.sin(0.7 * x) * np.cos(0.6 * z)
+    positions = np.stack([x, y, z], -1).reshape(-1, 3)
+    a = (np.arange(cells)[:, None] * (cells + 1) + np.arange(cells)[None, :]).ravel()
+    b, c = a + 1, a + cells + 1
+    indices = np.stack([a, b, c, b, c + 1, c], -1).ravel()
+    g.triangles("terrain", positions, indices, ground)
     g.write(path)

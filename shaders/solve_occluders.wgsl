@@ -28,8 +28,10 @@ const CONE_DISTANCE: f32 = 1.2;
 // it fills) is kept as a polygon; a smaller one goes into the cones.
 const BIG_POLYGON: f32 = 0.5;
 // Longest walk, in nodes; past it every direction counts as open to a
-// blocker (a CPU driver stops a shader's loops after 65,535 turns).
-const MAX_WALK: u32 = 4096u;
+// blocker. Walks that long follow a surface that crosses the point's plane
+// again and again (a rolling terrain): what they find seldom spares a ray,
+// and they cost more than the rays they spare.
+const MAX_WALK: u32 = 512u;
 // Cones as wide as this (sine of the half-angle) help no more: the point's
 // every direction is left to the rays.
 const WIDEST_CONE: f32 = 0.995;

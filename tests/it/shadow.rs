@@ -476,3 +476,55 @@ fn neighbours_of(texels: &[(Texel, f32)], width: u32) -> impl Fn(&Texel) -> Opti
         Some([near(1)?, near(-1)?, near(width)?, near(-width)?])
     }
 }
+
+#[test]
+fn a_rolling_terrain_whose_occluder_walks_give_up_gets_its_direct_light() {
+    // A black heightfield of 120 × 120 cells rolling ±0.5 m, under a low sun
+    // and a sky: the plane of almost every texel cuts the terrain again and
+    // again, so the occluder pass stops walking at its limit for many of
+    // them and leaves every direction to the rays (under sky_sun's 64
+    // lights, a limit of 4,096 nodes instead of 512 spared 7 % of the
+    // rays). The hills' shadows and the sky between them, against the CPU
+    // path tracer (black: direct light only). Bake gave 0.998 of its light
+    // with an RMSE of 0.6 %, and 0.999 with 1.4 % in the shadows; walks cut
+    // short that kept only the cones they had found gave 5.9 % there.
+    let gpu = common::gpu();
+    let mut terrain = MeshData::plane(20.0, 20.0, 120);
+    for p in &mut terrain.positions {
+        p[1] = 0.5 * (0.7 * p[0]).sin() * (0.6 * p[2]).cos();
+    }
+    terrain.normals = bake::fixtures::vertex_normals(&terrain.positions, &terrain.indices);
+    let mut builder = SceneBuilder::new();
+    builder.object("terrain", &terrain, [0.0, 0.0, 0.0, 1.0], [0.0; 3], Placement::default());
+    let sun_and_sky = EnvironmentMap::sun_and_sky([0.4, 0.5, 0.7], [0.9, 0.25, 0.35], 2e4, 1f32.to_radians());
+    let lights = common::lights(&sun_and_sky, LightMode::Budget { count: 64 });
+    let baked = common::bake(&gpu, &builder, &lights, &common::options(64));
+    let texels: Vec<usize> =
+        (0..baked.texels.texels.len()).filter(|&i| baked.texels.texels[i].area > 0.0).step_by(3).collect();
+    let options = bake::reference::ReferenceOptions { samples: 256, ..Default::default() };
+    let reference = bake::reference::Reference::new(&baked.scene, Some(&sun_and_sky), &options);
+    let estimates = reference.estimate(&common::reference_points(&baked, &texels));
+    let pairs: Vec<(f64, f64)> = texels
+        .iter()
+        .zip(&estimates)
+        .map(|(&i, e)| (baked.solution.lightmap[i].iter().map(|&v| v as f64).sum(), e.lightmap.iter().sum()))
+        .collect();
+    let mean = pairs.iter().map(|p| p.1).sum::<f64>() / pairs.len() as f64;
+    // The hills' shadows (and the faces turned from the sun): a few times
+    // darker than the mean.
+    let shadowed: Vec<(f64, f64)> = pairs.iter().copied().filter(|p| p.1 < 0.5 * mean).collect();
+    for (what, set) in [("every third texel", &pairs), ("those in shadow", &shadowed)] {
+        let (bake, expected): (f64, f64) = set.iter().fold((0.0, 0.0), |(b, r), p| (b + p.0, r + p.1));
+        let squares: f64 = set.iter().map(|p| (p.0 - p.1).powi(2)).sum();
+        let n = set.len() as f64;
+        let (ratio, rmse) = (bake / expected, (squares / n).sqrt() / (expected / n));
+        eprintln!(
+            "{what}: {} texels, bake / reference {ratio:.4}, RMSE {:.1} % of their mean",
+            set.len(),
+            rmse * 100.0
+        );
+        assert!((ratio - 1.0).abs() < 0.02, "{what}: bake / reference {ratio}");
+        assert!(rmse < 0.03, "{what}: RMSE {rmse}");
+    }
+    assert!(shadowed.len() * 10 > pairs.len(), "{} of {} texels in shadow", shadowed.len(), pairs.len());
+}
