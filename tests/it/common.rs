@@ -65,6 +65,25 @@ pub fn reference_points(baked: &Baked, indices: &[usize]) -> Vec<bake::reference
         .collect()
 }
 
+/// The lightmap's sum over RGB at each of `texels` beside the reference's
+/// estimate there, as (bake, reference).
+pub fn against_reference(baked: &Baked, texels: &[usize], estimates: &[bake::reference::Estimate]) -> Vec<(f64, f64)> {
+    texels
+        .iter()
+        .zip(estimates)
+        .map(|(&i, e)| (baked.solution.lightmap[i].iter().map(|&v| v as f64).sum(), e.lightmap.iter().sum()))
+        .collect()
+}
+
+/// Over (bake, reference) pairs: the ratio of their sums, and the RMSE of
+/// their differences as a share of the reference's mean.
+pub fn ratio_and_rmse(pairs: &[(f64, f64)]) -> (f64, f64) {
+    let (bake, expected) = pairs.iter().fold((0.0, 0.0), |(b, r), p| (b + p.0, r + p.1));
+    let squares: f64 = pairs.iter().map(|p| (p.0 - p.1).powi(2)).sum();
+    let n = pairs.len() as f64;
+    (bake / expected, (squares / n).sqrt() / (expected / n))
+}
+
 /// Area-weighted mean lightmap (red) of each primitive's texels.
 pub fn primitive_means(baked: &Baked) -> Vec<f64> {
     let mut sums = vec![(0.0f64, 0.0f64); baked.scene.primitives.len()];

@@ -523,14 +523,7 @@ fn the_floor_under_a_ring_and_the_ring_over_it_get_the_light_that_slips_between_
     let reference = bake::reference::Reference::new(&baked.scene, Some(&sun_and_sky), &options);
     for (what, texels) in [("floor under the tube", &floor), ("tube's lowest part", &ring)] {
         let estimates = reference.estimate(&common::reference_points(&baked, texels));
-        let (mut bake, mut expected, mut squares) = (0.0f64, 0.0f64, 0.0f64);
-        for (&i, e) in texels.iter().zip(&estimates) {
-            let b: f64 = baked.solution.lightmap[i].iter().map(|&v| v as f64).sum();
-            let r: f64 = e.lightmap.iter().sum();
-            (bake, expected, squares) = (bake + b, expected + r, squares + (b - r).powi(2));
-        }
-        let n = texels.len() as f64;
-        let (ratio, rmse) = (bake / expected, (squares / n).sqrt() / (expected / n));
+        let (ratio, rmse) = common::ratio_and_rmse(&common::against_reference(&baked, texels, &estimates));
         eprintln!(
             "{what}: {} texels, bake / reference {ratio:.3}, RMSE {:.1} % of the mean",
             texels.len(),

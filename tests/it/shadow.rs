@@ -504,20 +504,13 @@ fn a_rolling_terrain_whose_occluder_walks_give_up_gets_its_direct_light() {
     let options = bake::reference::ReferenceOptions { samples: 256, ..Default::default() };
     let reference = bake::reference::Reference::new(&baked.scene, Some(&sun_and_sky), &options);
     let estimates = reference.estimate(&common::reference_points(&baked, &texels));
-    let pairs: Vec<(f64, f64)> = texels
-        .iter()
-        .zip(&estimates)
-        .map(|(&i, e)| (baked.solution.lightmap[i].iter().map(|&v| v as f64).sum(), e.lightmap.iter().sum()))
-        .collect();
+    let pairs = common::against_reference(&baked, &texels, &estimates);
     let mean = pairs.iter().map(|p| p.1).sum::<f64>() / pairs.len() as f64;
     // The hills' shadows (and the faces turned from the sun): a few times
     // darker than the mean.
     let shadowed: Vec<(f64, f64)> = pairs.iter().copied().filter(|p| p.1 < 0.5 * mean).collect();
     for (what, set) in [("every third texel", &pairs), ("those in shadow", &shadowed)] {
-        let (bake, expected): (f64, f64) = set.iter().fold((0.0, 0.0), |(b, r), p| (b + p.0, r + p.1));
-        let squares: f64 = set.iter().map(|p| (p.0 - p.1).powi(2)).sum();
-        let n = set.len() as f64;
-        let (ratio, rmse) = (bake / expected, (squares / n).sqrt() / (expected / n));
+        let (ratio, rmse) = common::ratio_and_rmse(set);
         eprintln!(
             "{what}: {} texels, bake / reference {ratio:.4}, RMSE {:.1} % of their mean",
             set.len(),
