@@ -1,7 +1,7 @@
 """Scenes for benches/cycles.py that the fixtures lack, written as GLB at run
 time: a closed room lit through a window (colour bleeding) and a closed room
 lit only by an emissive ceiling panel; and, for timing the direct pass on a
-dense mesh, a rolling terrain. glTF world, +Y up, metres; every
+dense mesh, a rolling terrain. glTF world, +Y up, metres; every room
 surface is a one-sided quad facing into the room (bake and Cycles' material
 in cycles.py both treat back faces as black, light-blocking surfaces)."""
 
@@ -60,16 +60,16 @@ class Glb:
         attributes = {"POSITION": self._accessor(np.array(pos, np.float32), "VEC3", 34962),
                       "NORMAL": self._accessor(np.array(nrm, np.float32), "VEC3", 34962),
                       "TEXCOORD_0": self._accessor(np.array(uv, np.float32), "VEC2", 34962)}
-        indices = self._accessor(np.array(idx, np.uint32), "SCALAR", 34963)
-        self.gltf["meshes"].append({"name": name, "primitives": [
-            {"attributes": attributes, "indices": indices, "material": material}]})
-        self.gltf["nodes"].append({"name": name, "mesh": len(self.gltf["meshes"]) - 1})
-        self.gltf["scenes"][0]["nodes"].append(len(self.gltf["nodes"]) - 1)
+        self._object(name, attributes, np.array(idx, np.uint32), material)
 
     def triangles(self, name, positions, indices, material):
         """One primitive from a (n, 3) position array and a flat index array."""
         attributes = {"POSITION": self._accessor(np.asarray(positions, np.float32), "VEC3", 34962)}
-        indices = self._accessor(np.asarray(indices, np.uint32), "SCALAR", 34963)
+        self._object(name, attributes, np.asarray(indices, np.uint32), material)
+
+    def _object(self, name, attributes, indices, material):
+        """A mesh of one primitive and the node that places it in the scene."""
+        indices = self._accessor(indices, "SCALAR", 34963)
         self.gltf["meshes"].append({"name": name, "primitives": [
             {"attributes": attributes, "indices": indices, "material": material}]})
         self.gltf["nodes"].append({"name": name, "mesh": len(self.gltf["meshes"]) - 1})

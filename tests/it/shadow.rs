@@ -506,8 +506,8 @@ fn a_rolling_terrain_whose_occluder_walks_give_up_gets_its_direct_light() {
     let estimates = reference.estimate(&common::reference_points(&baked, &texels));
     let pairs = common::against_reference(&baked, &texels, &estimates);
     let mean = pairs.iter().map(|p| p.1).sum::<f64>() / pairs.len() as f64;
-    // The hills' shadows (and the faces turned from the sun): a few times
-    // darker than the mean.
+    // The hills' shadows (and the faces turned from the sun): under half
+    // the mean.
     let shadowed: Vec<(f64, f64)> = pairs.iter().copied().filter(|p| p.1 < 0.5 * mean).collect();
     for (what, set) in [("every third texel", &pairs), ("those in shadow", &shadowed)] {
         let (ratio, rmse) = common::ratio_and_rmse(set);
