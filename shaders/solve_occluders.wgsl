@@ -35,6 +35,9 @@ const MAX_WALK: u32 = 512u;
 // Cones as wide as this (sine of the half-angle) help no more: the point's
 // every direction is left to the rays.
 const WIDEST_CONE: f32 = 0.995;
+// Added to a merged cone's sine: rounding may turn its axis by a few units
+// in the last place, and a cone a hair too narrow would miss a blocker.
+const MERGE_SLACK: f32 = 1e-5;
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -168,24 +171,45 @@ fn add_cone(axis: vec3f, sine: f32) {
     cones[nearest] = merged(cones[nearest], vec4f(axis, sine));
 }
 
-// The narrowest cone around two cones (axis, sine of the half-angle).
+// The narrowest cone around two cones (axis, sine of the half-angle),
+// through the angle-sum formulas rather than the angles themselves: a walk
+// merges at most nodes it visits, and arcsines and sines would be most of
+// its time. α, β are the cones' half-angles, γ the angle between their axes.
 fn merged(a: vec4f, b: vec4f) -> vec4f {
-    let half_a = asin(min(a.w, 1.0));
-    let half_b = asin(min(b.w, 1.0));
-    let between = acos(clamp(dot(a.xyz, b.xyz), -1.0, 1.0));
-    if (between + half_b <= half_a) {
+    let sa = a.w;
+    let ca = sqrt(max(1.0 - sa * sa, 0.0));
+    let sb = b.w;
+    let cb = sqrt(max(1.0 - sb * sb, 0.0));
+    let cg = dot(a.xyz, b.xyz);
+    let sg = length(cross(a.xyz, b.xyz));
+    // One holds the other: γ + β ≤ α, cos(γ + β) ≥ cos α (α < 90°, so a sum
+    // past 180° fails too).
+    if (cg * cb - sg * sb >= ca) {
         return a;
     }
-    if (between + half_a <= half_b) {
+    if (cg * ca - sg * sa >= cb) {
         return b;
     }
-    let half = 0.5 * (between + half_a + half_b);
-    if (half >= asin(WIDEST_CONE)) {
+    // θ = γ + α + β, the merged cone's full angle.
+    let c_ab = ca * cb - sa * sb;
+    let s_ab = sa * cb + ca * sb;
+    let c_full = cg * c_ab - sg * s_ab;
+    let s_full = sg * c_ab + cg * s_ab;
+    // Half-angle sine and cosine, each from the form that keeps its
+    // precision at that end (1 − cos θ loses it for small θ).
+    let small = c_full >= 0.0;
+    let sine = select(sqrt(max(0.5 * (1.0 - c_full), 0.0)), s_full / sqrt(2.0 * (1.0 + c_full)), small);
+    let cosine = select(s_full / sqrt(max(2.0 * (1.0 - c_full), 1e-30)), sqrt(0.5 * (1.0 + c_full)), small);
+    if (s_full < 0.0 || sine >= WIDEST_CONE) {
         every_direction = true;
         return a;
     }
-    // Turn a's axis towards b's until the cone reaches both far edges.
-    let turn = (half - half_a) / max(between, 1e-6);
-    let axis = normalize(a.xyz * sin((1.0 - turn) * between) + b.xyz * sin(turn * between));
-    return vec4f(axis, sin(half));
+    // Turn a's axis towards b's by θ/2 − α, until the cone reaches both
+    // far edges.
+    let s_turn = sine * ca - cosine * sa;
+    let c_turn = cosine * ca + sine * sa;
+    let across = b.xyz - cg * a.xyz;
+    let towards_b = across / max(length(across), 1e-30);
+    let axis = normalize(c_turn * a.xyz + s_turn * towards_b);
+    return vec4f(axis, sine + MERGE_SLACK);
 }
