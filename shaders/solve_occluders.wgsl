@@ -172,9 +172,10 @@ fn add_cone(axis: vec3f, sine: f32) {
 }
 
 // The narrowest cone around two cones (axis, sine of the half-angle),
-// through the angle-sum formulas rather than the angles themselves: a walk
-// merges at most nodes it visits, and arcsines and sines would be most of
-// its time. α, β are the cones' half-angles, γ the angle between their axes.
+// through the angle-sum formulas rather than the angles themselves: no
+// inverse trigonometric functions in a step that most nodes of a walk take,
+// and no arccosine of nearly parallel axes, which f32 resolves poorly.
+// α, β are the cones' half-angles, γ the angle between their axes.
 fn merged(a: vec4f, b: vec4f) -> vec4f {
     let sa = a.w;
     let ca = sqrt(max(1.0 - sa * sa, 0.0));
