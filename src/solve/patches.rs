@@ -78,6 +78,14 @@ fn normal_axis(n: Vec3) -> u32 {
 /// got 0.69 of the reference on a 40 m ground, BENCHMARKS.md).
 const MAX_SPLITS: u8 = 4;
 
+/// An emissive texel's cell starts split up to this many times: an emitter's
+/// first shot is the scene's direct light from it, and a hemicube sees from
+/// one point, so each patch casts one hard shadow where the emitter casts a
+/// penumbra: in a room lit by a ceiling panel, split so, the error of its
+/// direct light against the path tracer fell from 1.7 % to 1.1 %
+/// (BENCHMARKS.md).
+const EMITTER_SPLITS: u8 = 2;
+
 /// A patch is cut into at most this many parts by what its hemicube's
 /// origin sees (`split_by_sight`).
 const MAX_PARTS: u32 = 4;
@@ -98,7 +106,8 @@ pub fn build(texels: &TexelSet, target: u32, texel_size: f32, sight: Option<Sigh
     }
     let cell = cell_size(texels, target);
     // How many times each texel's cell was split.
-    let mut splits = vec![0u8; n];
+    let emitter_splits = emitter_splits(texels, cell, target);
+    let mut splits: Vec<u8> = texels.texels.iter().map(|t| if emits(t) { emitter_splits } else { 0 }).collect();
     let key = |i: usize, splits: &[u8]| {
         let t = &texels.texels[i];
         let (x, y) = (t.x(texels.width), t.y(texels.width));
@@ -157,6 +166,19 @@ pub fn build(texels: &TexelSet, target: u32, texel_size: f32, sight: Option<Sigh
     let patches =
         ranges.into_par_iter().map(|r| patch(texels, &order[r.clone()], r.start as u32, texel_size)).collect();
     Patches { patches, members: order, texel_patch, cell }
+}
+
+fn emits(t: &crate::texelize::Texel) -> bool {
+    t.area > 0.0 && t.emission.iter().any(|&e| e > 0.0)
+}
+
+/// How many times the emitters' cells are split: `EMITTER_SPLITS`, or fewer
+/// where their patches would then outnumber the `target` for the whole
+/// scene (a scene that is mostly emitter, such as a glowing dome).
+fn emitter_splits(texels: &TexelSet, cell: u32, target: u32) -> u8 {
+    let emissive = texels.texels.iter().filter(|t| emits(t)).count() as f64;
+    let patches_at = |level: u8| emissive * 4f64.powi(level as i32) / (cell as f64 * cell as f64);
+    (0..=EMITTER_SPLITS).rev().find(|&level| patches_at(level) <= target as f64).unwrap_or(0)
 }
 
 /// Per primitive, the diagonal of its texels' world bounding box.
@@ -529,20 +551,25 @@ mod tests {
 
     /// A flat 8×8-texel chart of 0.1 m texels in the XZ plane.
     fn grid() -> TexelSet {
+        grid_of(8)
+    }
+
+    /// A flat n×n-texel chart of 0.1 m texels in the XZ plane.
+    fn grid_of(n: u32) -> TexelSet {
         let mut texels = Vec::new();
-        for y in 0..8u32 {
-            for x in 0..8u32 {
+        for y in 0..n {
+            for x in 0..n {
                 texels.push(Texel {
                     position: [x as f32 * 0.1, 0.0, y as f32 * 0.1],
                     area: 0.01,
                     normal: [0.0, 1.0, 0.0],
                     face_normal: [0.0, 1.0, 0.0],
-                    index: x + y * 8,
+                    index: x + y * n,
                     ..Default::default()
                 });
             }
         }
-        TexelSet { width: 8, height: 8, texels, tint: Vec::new() }
+        TexelSet { width: n, height: n, texels, tint: Vec::new() }
     }
 
     #[test]
@@ -555,6 +582,36 @@ mod tests {
         assert_eq!(seen, (0..64).collect::<Vec<_>>());
         let area: f32 = patches.patches.iter().map(|p| p.area).sum();
         assert!((area - 0.64).abs() < 1e-5);
+    }
+
+    /// `grid_of(16)` with target 16 patches (cells of 4×4 texels), the
+    /// texels at or past `from` (both columns and rows) emissive: the
+    /// emissive patches' and the others' sizes in texels.
+    fn patch_sizes_with_emitter(from: u32) -> (Vec<u32>, Vec<u32>) {
+        let mut texels = grid_of(16);
+        for t in texels.texels.iter_mut().filter(|t| t.x(16) >= from && t.y(16) >= from) {
+            t.emission = [1.0; 3];
+        }
+        let patches = build(&texels, 16, 0.1, None);
+        let emits = |p: &&Patch| texels.texels[patches.members[p.first as usize] as usize].emission[0] > 0.0;
+        let (lit, dark): (Vec<&Patch>, Vec<&Patch>) = patches.patches.iter().partition(emits);
+        (lit.iter().map(|p| p.count).collect(), dark.iter().map(|p| p.count).collect())
+    }
+
+    #[test]
+    fn an_emitter_shoots_from_smaller_patches() {
+        // One cell emits: split twice, down to a texel, its shadows are
+        // cast from 16 points instead of one.
+        assert_eq!(patch_sizes_with_emitter(12), (vec![1; 16], vec![16; 15]));
+    }
+
+    #[test]
+    fn emitters_split_no_further_than_the_target_allows() {
+        // A quarter emits: split twice it would be 64 patches, past the
+        // target of 16, so it is split once.
+        assert_eq!(patch_sizes_with_emitter(8), (vec![4; 16], vec![16; 12]));
+        // All of it emits: not split at all.
+        assert_eq!(patch_sizes_with_emitter(0), (vec![16; 16], vec![]));
     }
 
     #[test]
