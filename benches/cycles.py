@@ -2,7 +2,7 @@
 """Issue 47, target 4: bake against Blender Cycles, error against seconds.
 
     pip install bpy matplotlib OpenEXR
-    python3 benches/cycles.py --bake target/release/bake           # ~35 min on 2 cores
+    python3 benches/cycles.py --bake target/release/bake           # ~17 min on 2 cores
     python3 benches/cycles.py --bake target/release/bake --quick   # ~1 min, checks it runs
     python3 benches/cycles.py --from-json benches/cycles_results.json  # tables and figures again
     python3 benches/cycles.py --atlas 512 --only emitter_room --reference 1024 --max-samples 256
