@@ -14,10 +14,11 @@
 //!   shines in under the tube).
 //!
 //! A texel is in contact when one of `PROBE_SIDE`² cosine rays meets a
-//! surface within `REACH_CELLS` shooter patches; a texel that only borders
-//! a chart (no area) too, since a viewer's bilinear filter reads it at the
-//! chart's edge (left out, those beside a ring's contact kept 0.76 of the
-//! path tracer's light while the chart's inner texels were fixed). Its
+//! surface within `REACH_CELLS` shooter patches or `REACH_TEXELS` texels,
+//! whichever is farther; a texel that only borders a chart (no area) too,
+//! since a viewer's bilinear filter reads it at the chart's edge (left
+//! out, those beside a ring's contact kept 0.76 of the path tracer's light
+//! while the chart's inner texels were fixed). Its
 //! bounced light becomes the mean reflected radiance (albedo · L_lm) of the
 //! texels that `GATHER_SIDE`² stratified cosine rays meet, which is
 //! L_lm = E/π by definition, plus the light emitters send it (`emitted`:
@@ -54,6 +55,11 @@ const PROBE_SIDE: u32 = 4;
 /// the light between two surfaces. On the corner fixture half a cell was as
 /// accurate as one or two, at a fraction of the cost.
 const REACH_CELLS: f64 = 0.5;
+/// ... and at least this many lightmap texels: where the patches' cells are
+/// small (3 texels at a 128² atlas) half a cell left the second and third
+/// rows of a wall over a floor 2.4 % and 1.2 % dark in a room lit by a panel
+/// (BENCHMARKS.md).
+const REACH_TEXELS: f64 = 3.0;
 /// Surfaces within this many lightmap texels also get their direct light
 /// traced: the depth maps' texels track the lightmap's.
 const DIRECT_REACH_TEXELS: f64 = 2.0;
@@ -137,7 +143,7 @@ pub fn fix(geometry: &Geometry, direct: &Direct, lightmap: &mut [[f32; 3]], cell
     let start = std::time::Instant::now();
     let tracer = Tracer::new(geometry);
     let texels = geometry.texels;
-    let reach = REACH_CELLS * cell;
+    let reach = (REACH_CELLS * cell).max(REACH_TEXELS * geometry.texel_size);
     // Hidden texels keep no light (a slab's shadow on the ground under it
     // would take its underside's).
     let probes: Vec<Option<Probe>> = (0..texels.texels.len())
