@@ -120,17 +120,18 @@ def error(image, reference, mask):
     return float(np.sqrt(np.mean((a - r) ** 2)) / np.mean(r))
 
 
+def with_neighbours(mask):
+    """Each texel's value and its eight neighbours' (False past the image's edge)."""
+    m = np.pad(mask, 1)
+    h, w = mask.shape
+    return [m[dy:dy + h, dx:dx + w] for dy in range(3) for dx in range(3)]
+
+
 def mask_of(written):
     """Texels Cycles wrote (margin 0: texel centres inside a triangle) whose
     eight neighbours it wrote too: the charts' edge texels, where bake's and
     Cycles' footprint conventions differ, are left out."""
-    m = np.pad(written, 1)
-    h, w = written.shape
-    eroded = np.ones_like(written)
-    for dy in range(3):
-        for dx in range(3):
-            eroded &= m[dy:dy + h, dx:dx + w]
-    return eroded
+    return np.logical_and.reduce(with_neighbours(written))
 
 
 def beside_hidden(reference, written):
@@ -142,13 +143,7 @@ def beside_hidden(reference, written):
     charts' edges."""
     lum = reference[..., :3] @ LUMA
     black = written & (lum < 1e-3 * lum[written].mean())
-    m = np.pad(black, 1)
-    h, w = black.shape
-    near = np.zeros_like(black)
-    for dy in range(3):
-        for dx in range(3):
-            near |= m[dy:dy + h, dx:dx + w]
-    return near
+    return np.logical_or.reduce(with_neighbours(black))
 
 
 def corrected(raw, noise):

@@ -18,18 +18,18 @@
 //! whichever is farther; a texel that only borders a chart (no area) too,
 //! since a viewer's bilinear filter reads it at the chart's edge (left
 //! out, those beside a ring's contact kept 0.76 of the path tracer's light
-//! while the chart's inner texels were fixed). Its
-//! bounced light becomes the mean reflected radiance (albedo · L_lm) of the
-//! texels that `GATHER_SIDE`² stratified cosine rays meet, which is
-//! L_lm = E/π by definition, plus the light emitters send it (`emitted`:
-//! the same rays and samples on the emitters, each counted by the balance
-//! heuristic); what each ray meets is found once, and the gather is
-//! repeated (Jacobi) until light between texels in contact with each other
-//! stops changing. Where a surface lies within `DIRECT_REACH_TEXELS` its
-//! direct light is traced too (`DIRECT_SAMPLES` shadow rays spread over the
-//! lights by what each brings). Texels where few probe rays meet a surface
-//! are blended with the GPU passes' value (`FULL_WEIGHT_HITS`), so the
-//! fix-up's edge leaves no step.
+//! while the chart's inner texels were fixed). Its bounced light becomes the
+//! mean reflected radiance (albedo · L_lm) of the texels that `GATHER_SIDE`²
+//! stratified cosine rays meet, which is L_lm = E/π by definition, plus the
+//! light emitters send it (`emitted`: the same rays and samples on the
+//! emitters, each counted by the balance heuristic); what each ray meets is
+//! found once, and the gather is repeated (Jacobi) until light between
+//! texels in contact with each other stops changing. Where a surface lies
+//! within `DIRECT_REACH_TEXELS` its direct light is traced too
+//! (`DIRECT_SAMPLES` shadow rays spread over the lights by what each
+//! brings). Texels where few probe rays meet a surface are blended with the
+//! GPU passes' value (`FULL_WEIGHT_HITS`), so the fix-up's edge leaves no
+//! step.
 //!
 //! Texels whose rays meet an alpha-masked or blended surface keep the GPU
 //! passes' value: the CPU scene here is geometry only.

@@ -298,7 +298,7 @@ fn bounce(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Option<BounceStats>> {
     let Inputs { gpu, scene, texels, texels_per_unit, options } = *inputs;
-    let emitters = texels.texels.iter().any(|t| t.area > 0.0 && t.emission.iter().any(|&e| e > 0.0));
+    let emitters = texels.texels.iter().any(Texel::emits);
     let reflects =
         texels.texels.iter().zip(&lit.lightmap).any(|(t, l)| t.area > 0.0 && (0..3).any(|c| t.albedo[c] * l[c] > 0.0));
     if !emitters {

@@ -107,7 +107,7 @@ pub fn build(texels: &TexelSet, target: u32, texel_size: f32, sight: Option<Sigh
     let cell = cell_size(texels, target);
     // How many times each texel's cell was split.
     let emitter_splits = emitter_splits(texels, cell, target);
-    let mut splits: Vec<u8> = texels.texels.iter().map(|t| if emits(t) { emitter_splits } else { 0 }).collect();
+    let mut splits: Vec<u8> = texels.texels.iter().map(|t| if t.emits() { emitter_splits } else { 0 }).collect();
     let key = |i: usize, splits: &[u8]| {
         let t = &texels.texels[i];
         let (x, y) = (t.x(texels.width), t.y(texels.width));
@@ -168,15 +168,11 @@ pub fn build(texels: &TexelSet, target: u32, texel_size: f32, sight: Option<Sigh
     Patches { patches, members: order, texel_patch, cell }
 }
 
-fn emits(t: &crate::texelize::Texel) -> bool {
-    t.area > 0.0 && t.emission.iter().any(|&e| e > 0.0)
-}
-
 /// How many times the emitters' cells are split: `EMITTER_SPLITS`, or fewer
 /// where their patches would then outnumber the `target` for the whole
 /// scene (a scene that is mostly emitter, such as a glowing dome).
 fn emitter_splits(texels: &TexelSet, cell: u32, target: u32) -> u8 {
-    let emissive = texels.texels.iter().filter(|t| emits(t)).count() as f64;
+    let emissive = texels.texels.iter().filter(|t| t.emits()).count() as f64;
     let patches_at = |level: u8| emissive * 4f64.powi(level as i32) / (cell as f64 * cell as f64);
     (0..=EMITTER_SPLITS).rev().find(|&level| patches_at(level) <= target as f64).unwrap_or(0)
 }
@@ -593,7 +589,7 @@ mod tests {
             t.emission = [1.0; 3];
         }
         let patches = build(&texels, 16, 0.1, None);
-        let emits = |p: &&Patch| texels.texels[patches.members[p.first as usize] as usize].emission[0] > 0.0;
+        let emits = |p: &&Patch| texels.texels[patches.members[p.first as usize] as usize].emits();
         let (lit, dark): (Vec<&Patch>, Vec<&Patch>) = patches.patches.iter().partition(emits);
         (lit.iter().map(|p| p.count).collect(), dark.iter().map(|p| p.count).collect())
     }

@@ -58,6 +58,10 @@ impl Texel {
     pub fn y(&self, width: u32) -> u32 {
         self.index / width
     }
+    /// Whether it is surface (has area) that emits light.
+    pub fn emits(&self) -> bool {
+        self.area > 0.0 && self.emission.iter().any(|&e| e > 0.0)
+    }
 }
 
 /// The radiosity elements of one atlas page.
