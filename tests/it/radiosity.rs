@@ -660,6 +660,42 @@ fn a_wall_merged_into_the_grounds_mesh_gets_the_ground_light_down_to_its_foot() 
     }
 }
 
+#[test]
+fn a_rooms_walls_get_the_floors_light_down_to_their_foot_where_patches_are_three_texels_wide() {
+    // A white room with two boxes, lit by a panel under its ceiling, at an
+    // atlas where a shooter patch is three texels wide: the rows of the
+    // walls' foot within a floor patch are lit by it from too few points.
+    // With the contact fix-up reaching only half a patch (1.5 texels), the
+    // walls' second and third rows were 1.1 % and 0.6 % dark against the
+    // path tracer; reaching at least three texels (contact.rs), they are
+    // within 0.4 %.
+    let height = 3.0f32;
+    let mut builder = SceneBuilder::new();
+    let white = [0.8, 0.8, 0.8, 1.0];
+    let room = MeshData::room([5.0, height, 4.0]);
+    builder.object("room", &room, white, [0.0; 3], Placement::at(Vec3::Y * (0.5 * height)));
+    let facing_down = Placement::at(Vec3::Y * (height - 0.01)).rotated(Quat::from_rotation_x(180f32.to_radians()));
+    builder.object("panel", &MeshData::plane(1.2, 1.2, 2), white, [10.0; 3], facing_down);
+    builder.object("box", &MeshData::cuboid([0.8; 3]), white, [0.0; 3], Placement::at(Vec3::new(1.2, 0.4, 0.5)));
+    let tall = MeshData::cuboid([0.6, 1.8, 0.6]);
+    builder.object("tall box", &tall, [0.8, 0.7, 0.2, 1.0], [0.0; 3], Placement::at(Vec3::new(-1.3, 0.9, -0.8)));
+    let baked = bake_emitters(&builder, 128, |_| {});
+    let is_wall = |t: &bake::texelize::Texel| t.primitive == 0 && t.face_normal[1].abs() < 0.5 && t.area > 0.0;
+    let side = 1.0 / baked.atlas.texels_per_unit;
+    let rows = 3.0 * side;
+    let foot: Vec<usize> = (0..baked.texels.texels.len())
+        .filter(|&i| is_wall(&baked.texels.texels[i]) && baked.texels.texels[i].position[1] < rows)
+        .collect();
+    let ratios = bands_against_reference(&baked, &foot, rows, None);
+    eprintln!(
+        "{} texels of the walls' three lowest rows ({side:.3} m), bake / reference by row: {ratios:.4?}",
+        foot.len()
+    );
+    for (k, ratio) in ratios.iter().enumerate() {
+        assert!((ratio - 1.0).abs() < 0.008, "row {k}: {ratio}");
+    }
+}
+
 /// A 3 × 2 m wall standing across the middle of an 8 m ground, facing +Z.
 fn wall_on_the_ground() -> Placement {
     Placement::at(Vec3::new(0.0, 1.0, 0.0)).rotated(Quat::from_rotation_x(90f32.to_radians()))
