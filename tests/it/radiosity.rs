@@ -680,12 +680,10 @@ fn a_rooms_walls_get_the_floors_light_down_to_their_foot_where_patches_are_three
     let tall = MeshData::cuboid([0.6, 1.8, 0.6]);
     builder.object("tall box", &tall, [0.8, 0.7, 0.2, 1.0], [0.0; 3], Placement::at(Vec3::new(-1.3, 0.9, -0.8)));
     let baked = bake_emitters(&builder, 128, |_| {});
-    let is_wall = |t: &bake::texelize::Texel| t.primitive == 0 && t.face_normal[1].abs() < 0.5 && t.area > 0.0;
     let side = 1.0 / baked.atlas.texels_per_unit;
     let rows = 3.0 * side;
-    let foot: Vec<usize> = (0..baked.texels.texels.len())
-        .filter(|&i| is_wall(&baked.texels.texels[i]) && baked.texels.texels[i].position[1] < rows)
-        .collect();
+    let on_a_wall = |&i: &usize| baked.texels.texels[i].face_normal[1].abs() < 0.5;
+    let foot: Vec<usize> = texels_below(&baked, 0, rows).filter(on_a_wall).collect();
     let ratios = bands_against_reference(&baked, &foot, rows, None);
     eprintln!(
         "{} texels of the walls' three lowest rows ({side:.3} m), bake / reference by row: {ratios:.4?}",
