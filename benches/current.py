@@ -208,32 +208,38 @@ def section(binary, env_dir, table4_sizes):
             *accuracy_rows(binary, envs, work),
             "",
             *table4_rows(table4_sizes),
-            *cycles_rows(os.path.join(ROOT, "benches/cycles_results.json")),
+            *cycles_rows([os.path.join(ROOT, "benches", name) for name in ("cycles_results.json",
+                                                                           "cycles_results_512.json")]),
         ]
     return "\n".join(lines)
 
 
-def cycles_rows(path):
-    """The times to 2 % and 1 % against Blender Cycles from the last run of
-    benches/cycles.py (35 min, so not rerun here)."""
-    if not os.path.exists(path):
+def cycles_rows(paths):
+    """The times to 2 % and 1 % against Blender Cycles from the last runs of
+    benches/cycles.py (35 min at 128², as long a scene at 512², so not rerun
+    here), one row a scene and atlas."""
+    results = []
+    for path in paths:
+        if os.path.exists(path):
+            with open(path) as f:
+                results += [(os.path.relpath(path, ROOT), r) for r in json.load(f)]
+    if not results:
         return []
-    with open(path) as f:
-        results = json.load(f)
     mark = {"<=": "≤ ", "~": "~", "=": ""}
     when = lambda t: "not reached" if t is None else f"{mark[t[0]]}{t[1]:.1f} s"
+    sources = ", ".join(f"`{p}`" for p in dict.fromkeys(p for p, _ in results))
     lines = [
-        "**Against Blender Cycles** (time to reach a relative RMSE against a converged Cycles bake; 128² atlases; "
-        f"from `{os.path.relpath(path, ROOT)}`, the last run of `benches/cycles.py`; its commit is in the newest "
-        "section below that names it, the method and caveats in \"bake against Blender Cycles\"):",
+        "**Against Blender Cycles** (time to reach a relative RMSE against a converged Cycles bake; from "
+        f"{sources}, the last runs of `benches/cycles.py`; their commits are in the newest sections below that "
+        "name them, the method and caveats in \"bake against Blender Cycles\"):",
         "",
-        "| scene | bake to 2 % | Cycles to 2 % | ratio | bake to 1 % | Cycles to 1 % | ratio |",
-        "|---|---|---|---|---|---|---|",
+        "| scene | atlas | bake to 2 % | Cycles to 2 % | ratio | bake to 1 % | Cycles to 1 % | ratio |",
+        "|---|---|---|---|---|---|---|---|",
     ]
-    for r in results:
+    for _, r in results:
         cells = [cell for level in ("2%", "1%") for cell in
                  (when(r["reached"][level][0]), when(r["reached"][level][1]), r["reached"][level][2])]
-        lines.append(f"| {r['name']} ({r['kind']}) | " + " | ".join(cells) + " |")
+        lines.append(f"| {r['name']} ({r['kind']}) | {r['atlas']} | " + " | ".join(cells) + " |")
     return lines + [""]
 
 
