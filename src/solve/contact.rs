@@ -539,26 +539,28 @@ struct GridTexel {
 
 impl TexelGrid {
     fn new(texels: &TexelSet, cell: f64) -> TexelGrid {
-        let cube_of = |t: &Texel| (t.position().as_dvec3() / cell).floor().as_ivec3();
-        // By cube, and by texel index within one.
-        let mut keyed: Vec<(IVec3, u32)> = (0..texels.texels.len())
-            .filter(|&i| texels.texels[i].area > 0.0)
-            .map(|i| (cube_of(&texels.texels[i]), i as u32))
-            .collect();
-        keyed.par_sort_unstable_by_key(|&(cube, i)| (cube.to_array(), i));
-        let mut cubes = FxHashMap::default();
-        let mut entries = Vec::with_capacity(keyed.len());
-        for (k, &(cube, i)) in keyed.iter().enumerate() {
-            let t = &texels.texels[i as usize];
-            cubes.entry(cube).or_insert((k as u32, k as u32)).1 += 1;
-            entries.push(GridTexel {
+        let with_area = (0..texels.texels.len()).filter(|&i| texels.texels[i].area > 0.0).map(|i| {
+            let t = &texels.texels[i];
+            GridTexel {
                 position: t.position(),
                 face: Vec3::from(t.face_normal),
                 primitive: t.primitive,
-                index: i,
-            });
+                index: i as u32,
+            }
+        });
+        TexelGrid::of(with_area.collect(), cell)
+    }
+
+    /// The grid of `texels` (their indices distinct), in cubes `cell` wide.
+    fn of(mut texels: Vec<GridTexel>, cell: f64) -> TexelGrid {
+        let cube_of = |t: &GridTexel| (t.position.as_dvec3() / cell).floor().as_ivec3();
+        // By cube, and by texel index within one.
+        texels.par_sort_by_cached_key(|t| (cube_of(t).to_array(), t.index));
+        let mut cubes = FxHashMap::default();
+        for (k, t) in texels.iter().enumerate() {
+            cubes.entry(cube_of(t)).or_insert((k as u32, k as u32)).1 += 1;
         }
-        TexelGrid { cell, cubes, entries }
+        TexelGrid { cell, cubes, entries: texels }
     }
 
     /// The nearest texel `accept`s of those in the 27 cubes around `p`
@@ -632,5 +634,83 @@ impl TexelGrid {
         let high = low + (self.cell + 2.0 * margin);
         let outside = (low - p).max(p - high).max(DVec3::ZERO);
         outside.length_squared()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::trace::random::Rng;
+
+    /// `TexelGrid::nearest_in_reach` by its definition: every candidate of
+    /// the 27 cubes in turn, the first of equally near ones.
+    fn nearest_of_all_27(grid: &TexelGrid, p: DVec3, primitive: u32, face: DVec3, d: DVec3) -> Option<u32> {
+        let home = (p / grid.cell).floor().as_ivec3();
+        NEIGHBOURS
+            .iter()
+            .filter_map(|&offset| grid.cubes.get(&(home + offset)))
+            .flat_map(|&(start, end)| &grid.entries[start as usize..end as usize])
+            .filter_map(|t| grid.keyed(t, p, primitive, face, d))
+            .reduce(|best, c| if c.0 < best.0 { c } else { best })
+            .map(|c| c.1)
+    }
+
+    /// A floor (primitive 0, facing up), a second floor laid over half of
+    /// it (primitive 1) and a wall across it (primitive 2, facing +x), texels
+    /// `size` apart on a lattice, so that many points lie equally near two.
+    fn floor_and_wall(size: f32) -> Vec<GridTexel> {
+        let mut texels = Vec::new();
+        let mut add = |position: Vec3, face: Vec3, primitive: u32| {
+            let index = texels.len() as u32;
+            texels.push(GridTexel { position, face, primitive, index });
+        };
+        for i in 0..40 {
+            for j in 0..40 {
+                let (x, y) = ((i as f32 + 0.5) * size, (j as f32 + 0.5) * size);
+                add(Vec3::new(x, y, 0.0), Vec3::Z, 0);
+                if i >= 20 {
+                    add(Vec3::new(x, y, 0.0), Vec3::Z, 1);
+                }
+                add(Vec3::new(0.0, x, y), Vec3::X, 2);
+            }
+        }
+        texels
+    }
+
+    #[test]
+    fn a_gather_rays_texel_is_the_one_a_search_of_all_27_cubes_finds() {
+        let size = 0.1;
+        let grid = TexelGrid::of(floor_and_wall(size), 1.5 * size as f64);
+        let mut rng = Rng::new(&[78]);
+        let (mut ties, mut found) = (0, 0);
+        for q in 0..20_000 {
+            // Half the points on the lattice of half-texels (ties), half anywhere.
+            let on_lattice = q % 2 == 0;
+            let mut coordinate = || {
+                let c = rng.next_f64() * 4.0;
+                if on_lattice { (c * 20.0).round() / 20.0 } else { c }
+            };
+            let (a, b) = (coordinate(), coordinate());
+            let slant = DVec3::new(rng.next_f64() - 0.5, rng.next_f64() - 0.5, rng.next_f64() - 0.5);
+            let (p, face, primitive) = if q % 3 == 0 {
+                (DVec3::new(0.0, a, b), DVec3::X, 2)
+            } else {
+                (DVec3::new(a, b, 0.0), DVec3::Z, (q % 3 == 1) as u32)
+            };
+            let d = (-face + 0.9 * slant.reject_from(face)).normalize();
+            let home = (p / grid.cell).floor().as_ivec3();
+            let expected = nearest_of_all_27(&grid, p, primitive, face, d);
+            assert_eq!(grid.nearest_in_reach(p, home, primitive, face, d), expected, "at {p} on {primitive}");
+            found += expected.is_some() as u32;
+            let key = |i: u32| grid.keyed(grid.entries.iter().find(|t| t.index == i).unwrap(), p, primitive, face, d);
+            let best = expected.and_then(key).map(|k| k.0);
+            ties += grid.entries.iter().filter(|t| t.index != expected.unwrap_or(u32::MAX)).any(|t| {
+                let near = (t.position.as_dvec3() - p).length() < 2.0 * grid.cell;
+                near && grid.keyed(t, p, primitive, face, d).map(|k| k.0) == best
+            }) as u32;
+        }
+        // The lattice's points put some candidates exactly as near as the one found.
+        assert!(found > 19_000, "found {found}");
+        assert!(ties > 500, "ties {ties}");
     }
 }
