@@ -574,14 +574,26 @@ impl TexelGrid {
         if accept(nearest) {
             return Some(nearest);
         }
-        let mut rest: Vec<(f64, u32)> = NEIGHBOURS
-            .iter()
-            .filter_map(|&offset| self.cubes.get(&(home + offset)))
-            .flat_map(|&(start, end)| &self.entries[start as usize..end as usize])
-            .filter_map(|t| self.keyed(t, p, primitive, face, d))
-            .collect();
+        let mut rest: Vec<(f64, u32)> = self.candidates(p, home, primitive, face, d).collect();
         rest.sort_by(|a, b| a.0.total_cmp(&b.0));
         rest.into_iter().map(|(_, i)| i).filter(|&i| i != nearest).find(|&i| accept(i))
+    }
+
+    /// `nearest`'s candidates about `p` (in the cube `home`), keyed
+    /// (`keyed`), in the order of `NEIGHBOURS` and then of `entries`.
+    fn candidates(
+        &self,
+        p: DVec3,
+        home: IVec3,
+        primitive: u32,
+        face: DVec3,
+        d: DVec3,
+    ) -> impl Iterator<Item = (f64, u32)> {
+        NEIGHBOURS
+            .iter()
+            .filter_map(move |&offset| self.cubes.get(&(home + offset)))
+            .flat_map(|&(start, end)| &self.entries[start as usize..end as usize])
+            .filter_map(move |t| self.keyed(t, p, primitive, face, d))
     }
 
     /// The nearest of `nearest`'s candidates, the first of equally near
@@ -646,13 +658,9 @@ mod tests {
     /// the 27 cubes in turn, the first of equally near ones.
     fn nearest_of_all_27(grid: &TexelGrid, p: DVec3, primitive: u32, face: DVec3, d: DVec3) -> Option<u32> {
         let home = (p / grid.cell).floor().as_ivec3();
-        NEIGHBOURS
-            .iter()
-            .filter_map(|&offset| grid.cubes.get(&(home + offset)))
-            .flat_map(|&(start, end)| &grid.entries[start as usize..end as usize])
-            .filter_map(|t| grid.keyed(t, p, primitive, face, d))
-            .reduce(|best, c| if c.0 < best.0 { c } else { best })
-            .map(|c| c.1)
+        let nearest =
+            grid.candidates(p, home, primitive, face, d).reduce(|best, c| if c.0 < best.0 { c } else { best });
+        nearest.map(|c| c.1)
     }
 
     /// A floor (primitive 0, facing up), a second floor laid over half of
@@ -702,12 +710,9 @@ mod tests {
             let expected = nearest_of_all_27(&grid, p, primitive, face, d);
             assert_eq!(grid.nearest_in_reach(p, home, primitive, face, d), expected, "at {p} on {primitive}");
             found += expected.is_some() as u32;
-            let key = |i: u32| grid.keyed(grid.entries.iter().find(|t| t.index == i).unwrap(), p, primitive, face, d);
-            let best = expected.and_then(key).map(|k| k.0);
-            ties += grid.entries.iter().filter(|t| t.index != expected.unwrap_or(u32::MAX)).any(|t| {
-                let near = (t.position.as_dvec3() - p).length() < 2.0 * grid.cell;
-                near && grid.keyed(t, p, primitive, face, d).map(|k| k.0) == best
-            }) as u32;
+            let keys: Vec<(f64, u32)> = grid.candidates(p, home, primitive, face, d).collect();
+            let best = keys.iter().find(|k| Some(k.1) == expected).map(|k| k.0);
+            ties += keys.iter().any(|k| Some(k.1) != expected && Some(k.0) == best) as u32;
         }
         // The lattice's points put some candidates exactly as near as the one found.
         assert!(found > 19_000, "found {found}");
