@@ -81,8 +81,6 @@ struct Blockers {
     every: bool,           // every direction above the face may be blocked
     p0: Polygon,
     p1: Polygon,
-    p2: Polygon,
-    p3: Polygon,
 }
 
 fn blockers_of(i: u32, o: vec3f) -> Blockers {
@@ -93,8 +91,6 @@ fn blockers_of(i: u32, o: vec3f) -> Blockers {
         (s.flags & ALL_DIRECTIONS) != 0u,
         polygon_of(s.polygons.x, o),
         polygon_of(s.polygons.y, o),
-        polygon_of(s.polygons.z, o),
-        polygon_of(s.polygons.w, o),
     );
 }
 
@@ -142,18 +138,6 @@ fn meets_a_cone(b: Blockers, w: vec3f, ca: f32, sa: f32) -> bool {
     let axes = vec4f(dot(w, b.axes[0].xyz), dot(w, b.axes[1].xyz), dot(w, b.axes[2].xyz), dot(w, b.axes[3].xyz));
     let reach = vec4f(b.axes[0].w, b.axes[1].w, b.axes[2].w, b.axes[3].w) * ca - b.sines * sa;
     return b.every || ca <= 0.0 || any(axes > reach);
-}
-
-// Whether the ray o + t·d, t > 0, meets one of the blockers' polygons.
-fn meets_a_polygon(b: Blockers, o: vec3f, d: vec3f) -> bool {
-    return meets(b.p0, o, d) || meets(b.p1, o, d) || meets(b.p2, o, d) || meets(b.p3, o, d);
-}
-
-// Whether the cone about `w` reaches the plane of one of the blockers'
-// polygons from the point's side.
-fn reaches_a_plane(b: Blockers, w: vec3f, sa: f32) -> bool {
-    return reaches_plane(b.p0, w, sa) || reaches_plane(b.p1, w, sa) || reaches_plane(b.p2, w, sa)
-        || reaches_plane(b.p3, w, sa);
 }
 
 // Whether the cone about `w` reaches the plane of the polygon from the
@@ -391,12 +375,12 @@ fn share_open(open: u32, leaving: u32) -> f32 {
 }
 
 // Of light `l`'s rays at point `i` that leave the face, the share that
-// meet none of the polygons (for a light no other blocker reaches: no walk).
+// meet neither polygon (for a light no other blocker reaches: no walk).
 fn polygon_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers) -> f32 {
     var c = cone_rays(l, k, i, 1u);
     loop {
         let d = next_direction(c);
-        if (count_ray(&c, dot(d, p.face_normal) > 0.0, meets_a_polygon(b, o, d))) {
+        if (count_ray(&c, dot(d, p.face_normal) > 0.0, meets(b.p0, o, d) || meets(b.p1, o, d))) {
             break;
         }
     }
@@ -421,7 +405,7 @@ fn cone_visibility(l: Light, k: u32, i: u32, p: Texel, o: vec3f, b: Blockers) ->
 fn cast_ray(c: ptr<function, ConeRays>, p: Texel, o: vec3f, b: Blockers) -> bool {
     let d = next_direction(*c);
     let leaves = dot(d, p.face_normal) > 0.0;
-    let hits_polygon = meets_a_polygon(b, o, d);
+    let hits_polygon = meets(b.p0, o, d) || meets(b.p1, o, d);
     let traced = leaves && !hits_polygon && in_a_cone(b, d);
     rays_cast += select(0u, 1u, traced);
     let blocked = hits_polygon || occluded(o, d, 3.0e38, p.triangle, traced);
@@ -540,7 +524,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             // Some of the cone above the face (a cone wider than a hemisphere always).
             let lit = cos_f > -sa || ca <= 0.0;
             let walk = lit && meets_a_cone(b, head.xyz, ca, sa);
-            let polygon = lit && !walk && reaches_a_plane(b, head.xyz, sa);
+            let polygon = lit && !walk && (reaches_plane(b.p0, head.xyz, sa) || reaches_plane(b.p1, head.xyz, sa));
             let crosses = lit && !walk && !polygon && cos_f < sa;
             let plain = lit && !walk && !polygon && !crosses;
             add_plain_light(&sums, select(vec3f(0.0), power.rgb, plain), ca, select(0.0, power.w, plain), cos_n, 1.0);

@@ -51,7 +51,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
 
 var<private> cones: array<vec4f, CONES>;   // axis, sine of the half-angle
 var<private> cone_count: u32;
-var<private> polygons: vec4<u32>;
+var<private> polygons: vec2<u32>;
 var<private> polygon_count: u32;
 var<private> every_direction: bool;
 
@@ -59,7 +59,7 @@ var<private> every_direction: bool;
 fn summarize(o: vec3f, face: vec3f, skip: u32) -> Occluders {
     cone_count = 0u;
     polygon_count = 0u;
-    polygons = vec4<u32>(NO_POLYGON);
+    polygons = vec2<u32>(NO_POLYGON);
     every_direction = false;
     let plane = dot(o, face);
     var i = 0u;

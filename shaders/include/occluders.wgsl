@@ -4,7 +4,7 @@
 // (solve_occluders.wgsl) and the direct pass reads it (solve_direct.wgsl).
 
 const CONES: u32 = 4u;
-const POLYGONS: u32 = 4u;
+const POLYGONS: u32 = 2u;
 const NO_POLYGON: u32 = 0xffffffffu;
 // `Occluders::flags`: the cones could not hold the blockers; a ray is cast
 // in every direction above the face.
@@ -18,7 +18,7 @@ struct Occluders {
     // ... and the sines.
     sines: vec4f,
     // Nodes whose triangles tile a convex polygon above the face (NO_POLYGON: none).
-    polygons: vec4<u32>,
+    polygons: vec2<u32>,
     flags: u32,
     // Nodes the walk visited (for the report).
     visits: u32,

@@ -1,6 +1,6 @@
 //! The occluder pass (`solve_occluders.wgsl`): for every point the direct
 //! pass will gather at, what above the plane of its face can block its
-//! light: up to four convex polygons, tested exactly, and up to four cones
+//! light: up to two convex polygons, tested exactly, and up to four cones
 //! around everything else. The direct pass casts rays only into them.
 
 use bytemuck::{Pod, Zeroable};
@@ -16,16 +16,15 @@ struct OccluderParams {
     _pad: [u32; 2],
 }
 
-/// Mirrors `Occluders` in include/occluders.wgsl: 112 bytes a point.
+/// Mirrors `Occluders` in include/occluders.wgsl: 96 bytes a point.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
 pub struct Occluders {
     pub cones: [[f32; 4]; 4],
     pub sines: [f32; 4],
-    pub polygons: [u32; 4],
+    pub polygons: [u32; 2],
     pub flags: u32,
     pub visits: u32,
-    _pad: [u32; 2],
 }
 
 /// The pass: its pipeline and the layout of its own bind group (group 0;
