@@ -359,40 +359,63 @@ fn finish_primitives(gathered: Vec<Gathered>, notices: &mut Vec<String>) -> Resu
 }
 
 /// Refuses a scene longer than [`limits::MAX_SCENE_EXTENT`] along a world
-/// axis (a stray vertex, a node scaled by 10³⁰), naming the vertices at
-/// both ends: its areas and distances would overflow f32 in the solve.
+/// axis (a stray vertex, a node scaled by 10³⁰), or whose longest side is
+/// under [`limits::MIN_SCENE_EXTENT`] (a node scaled by 10⁻¹²), naming the
+/// vertices at both ends: its areas and distances would leave f32's range in
+/// the solve. A scene of no extent at all has no area, refused as such later.
 fn check_extent(gathered: &[Gathered]) -> Result<()> {
-    for (axis, name) in ["x", "y", "z"].into_iter().enumerate() {
-        // (coordinate, primitive, vertex) of the lowest and highest vertex along `axis`.
-        let mut low = (f64::INFINITY, 0, 0);
-        let mut high = (f64::NEG_INFINITY, 0, 0);
-        for (g, gathered) in gathered.iter().enumerate() {
-            for (v, p) in gathered.world.iter().enumerate() {
-                if p[axis] < low.0 {
-                    low = (p[axis], g, v);
-                }
-                if p[axis] > high.0 {
-                    high = (p[axis], g, v);
-                }
-            }
-        }
-        let extent = high.0 - low.0;
-        if extent > limits::MAX_SCENE_EXTENT {
-            bail!(
-                "the scene spans {} m along {name}, more than the {:.0e} m bake accepts (f32 headroom, \
-                 README 'Bad input'): from vertex {} of {} at {name} = {} to vertex {} of {} at {name} = {}",
-                limits::figure(extent),
-                limits::MAX_SCENE_EXTENT,
-                low.2,
-                gathered[low.1].what,
-                limits::figure(low.0),
-                high.2,
-                gathered[high.1].what,
-                limits::figure(high.0)
-            );
-        }
+    let spans = [0, 1, 2].map(|axis| axis_span(gathered, axis));
+    let refuse = |span: &AxisSpan, what: &str, bound: String| {
+        let name = ["x", "y", "z"][span.axis];
+        let end = |(at, g, v): (f64, usize, usize)| {
+            format!("vertex {v} of {} at {name} = {}", gathered[g].what, limits::figure(at))
+        };
+        let (extent, low, high) = (limits::figure(span.extent()), end(span.low), end(span.high));
+        anyhow!("{what} {extent} m along {name}, {bound}: from {low} to {high}")
+    };
+    if let Some(long) = spans.iter().find(|span| span.extent() > limits::MAX_SCENE_EXTENT) {
+        let bound =
+            format!("more than the {:.0e} m bake accepts (f32 headroom, README 'Bad input')", limits::MAX_SCENE_EXTENT);
+        return Err(refuse(long, "the scene spans", bound));
+    }
+    let longest = spans.iter().max_by(|a, b| a.extent().total_cmp(&b.extent())).expect("three axes");
+    if longest.extent() > 0.0 && longest.extent() < limits::MIN_SCENE_EXTENT {
+        let bound = format!(
+            "less than the {:.0e} m bake accepts (glTF lengths are metres; f32 headroom, README 'Bad input')",
+            limits::MIN_SCENE_EXTENT
+        );
+        return Err(refuse(longest, "the scene's longest side spans", bound));
     }
     Ok(())
+}
+
+/// The lowest and highest vertex along one world axis, each as
+/// (coordinate, primitive, vertex).
+struct AxisSpan {
+    axis: usize,
+    low: (f64, usize, usize),
+    high: (f64, usize, usize),
+}
+
+impl AxisSpan {
+    fn extent(&self) -> f64 {
+        self.high.0 - self.low.0
+    }
+}
+
+fn axis_span(gathered: &[Gathered], axis: usize) -> AxisSpan {
+    let mut span = AxisSpan { axis, low: (f64::INFINITY, 0, 0), high: (f64::NEG_INFINITY, 0, 0) };
+    for (g, gathered) in gathered.iter().enumerate() {
+        for (v, p) in gathered.world.iter().enumerate() {
+            if p[axis] < span.low.0 {
+                span.low = (p[axis], g, v);
+            }
+            if p[axis] > span.high.0 {
+                span.high = (p[axis], g, v);
+            }
+        }
+    }
+    span
 }
 
 /// Refuses a used material whose emission (factor × KHR_materials_emissive_strength)

@@ -19,9 +19,18 @@
 //! Neither bound is near a real scene: 10⁷ m is 10 000 km, most of the
 //! Earth's diameter; the sun's luminance is 1.6·10⁹ cd/m², a stadium
 //! floodlight about 10⁶ cd, sunlight 1.2·10⁵ lux.
+//!
+//! At the other end, the form factors divide by terms of the fourth power of
+//! a distance (r²·(πr² + A)), which leave f32's normal range (10⁻³⁸) for
+//! distances under about 10⁻¹⁰ m: a scene whose longest side is under
+//! [`MIN_SCENE_EXTENT`] = 10⁻⁶ m is refused rather than baked dark. No real
+//! scene is that small either: a chair exported in kilometres is still 10⁻³.
 
 /// The largest extent of a scene along any world axis, in metres.
 pub const MAX_SCENE_EXTENT: f64 = 1e7;
+
+/// The smallest a scene's longest extent along a world axis may be, in metres.
+pub const MIN_SCENE_EXTENT: f64 = 1e-6;
 
 /// The largest radiance an environment texel (times `--env-intensity`) or
 /// an emissive material (factor × KHR_materials_emissive_strength) may

@@ -814,6 +814,22 @@ fn edited(case: &Case, name: &str, edit: impl FnOnce(&mut Value, &mut Vec<u8>)) 
 }
 
 #[test]
+fn a_scene_smaller_than_a_micrometre_is_refused_naming_its_size_and_the_bound() {
+    // Its form factors' r⁴ terms would leave f32's normal range: baked, a
+    // scene 10⁻¹³ m across came out black with exit code 0.
+    let case = Case::new();
+    edited(&case, "tiny.glb", |json, _| {
+        let roots = json["scenes"][0]["nodes"].clone();
+        let nodes = json["nodes"].as_array_mut().unwrap();
+        nodes.push(json!({ "name": "wrong unit", "scale": [1e-9, 1e-9, 1e-9], "children": roots }));
+        json["scenes"][0]["nodes"] = json!([nodes.len() - 1]);
+    });
+    let line = case.refused(&["tiny.glb"], "tiny.glb", "the scene's longest side spans ");
+    assert!(line.contains("less than the 1e-6 m bake accepts (glTF lengths are metres"), "{line}");
+    assert!(line.contains("from vertex ") && line.contains(" of mesh 0 'ground' on node 0 'ground'"), "{line}");
+}
+
+#[test]
 fn scenes_where_no_triangle_has_any_area_are_refused() {
     let case = Case::new();
     edited(&case, "scaled.glb", |json, _| {
