@@ -259,11 +259,17 @@ fn texelize_atlas(gpu: &Gpu, scene: &Scene, atlas: &Atlas) -> Result<(TexelSet, 
         0 => None,
         _ => Some(texelize::run(gpu, scene, atlas)?).filter(|t| !t.texels.is_empty()),
     };
-    // Too low a density leaves nothing to bake: the user's to change, not a GPU failure.
+    // Nothing to bake: the input's geometry or the user's density, not a GPU failure.
     let Some(texels) = texels else {
+        if atlas.chart_count == 0 {
+            bail!(
+                "the unwrap laid out none of the scene's triangles (each is degenerate at its size: a sliver \
+                 or a speck): nothing to lightmap"
+            );
+        }
         bail!(
             "at {} texels per metre the scene covers no lightmap texel: raise --texels-per-unit",
-            atlas.texels_per_unit
+            limits::figure(f64::from(atlas.texels_per_unit))
         );
     };
     let summary = format!("{} texels covering {:.4} m²", texels.texels.len(), texels.total_area());

@@ -863,6 +863,27 @@ fn scenes_where_no_triangle_has_any_area_are_refused() {
 }
 
 #[test]
+fn a_scene_of_slivers_the_unwrap_cannot_chart_is_refused_as_such() {
+    // Triangles of area (20 m long, 1 µm wide) that xatlas drops as
+    // degenerate: the density is not the user's to raise.
+    use bake::fixtures::{MeshData, Placement, SceneBuilder};
+    let mut slivers = MeshData::default();
+    for k in 0..200u32 {
+        let x = k as f32 * 0.01;
+        slivers.positions.extend_from_slice(&[[x, 0.0, -10.0], [x + 1e-6, 0.0, 10.0], [x, 1e-6, 0.0]]);
+        slivers.normals.extend_from_slice(&[[0.0, 1.0, 0.0]; 3]);
+        slivers.uv0.extend_from_slice(&[[0.0, 0.0]; 3]);
+        slivers.indices.extend_from_slice(&[3 * k, 3 * k + 1, 3 * k + 2]);
+    }
+    let mut scene = SceneBuilder::new();
+    scene.object("slivers", &slivers, [0.5, 0.5, 0.5, 1.0], [0.0; 3], Placement::default());
+    let case = Case::new();
+    case.write("slivers.glb", &scene.to_glb());
+    let line = case.refused(&["slivers.glb"], "slivers.glb", "the unwrap laid out none of the scene's triangles");
+    assert!(!line.contains("--texels-per-unit"), "{line}");
+}
+
+#[test]
 fn a_density_that_yields_no_texels_is_a_user_error() {
     let case = Case::new();
     std::fs::copy(fixture("sphere_on_ground.glb"), case.path("scene.glb")).unwrap();
