@@ -19,7 +19,7 @@ use anyhow::{Context, Result, anyhow, bail, ensure};
 use glam::{DMat3, DMat4, DVec3};
 use gltf::mesh::Mode;
 
-use crate::asset::{SourceAsset, accessor, instancing, ktx2, morph};
+use crate::asset::{SourceAsset, accessor, hierarchy, instancing, ktx2, morph};
 use crate::scene::{
     AlphaMode, LightKind, LinearImage, Material, PunctualLight, Scene, ScenePrimitive, TextureRef, choose_origin,
 };
@@ -63,6 +63,7 @@ pub fn from_asset_with(source: SourceAsset, options: &ImportOptions) -> Result<S
         .default_scene()
         .or_else(|| document.scenes().next())
         .ok_or_else(|| anyhow!("the file has no scene to bake"))?;
+    hierarchy::check_trees(document, &gltf_scene)?;
     let triangles = drawn_triangles(&source.json, &gltf_scene);
     if triangles > options.max_triangles {
         bail!(

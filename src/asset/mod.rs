@@ -9,6 +9,7 @@
 
 pub mod accessor;
 pub mod draco;
+pub mod hierarchy;
 pub mod instancing;
 pub mod ktx2;
 pub mod meshopt;

@@ -863,6 +863,42 @@ fn scenes_where_no_triangle_has_any_area_are_refused() {
 }
 
 #[test]
+fn node_hierarchies_that_are_not_trees_are_refused_naming_the_nodes() {
+    // Each would bake one node at two placements into its one set of UVs.
+    type Edit = fn(&mut Value);
+    let case = Case::new();
+    let cases: [(&str, Edit, &str); 4] = [
+        (
+            "two_parents.glb",
+            |json| {
+                json["nodes"].as_array_mut().unwrap().push(json!({ "name": "left", "children": [1] }));
+                json["nodes"].as_array_mut().unwrap().push(json!({ "name": "right", "children": [1] }));
+                json["scenes"][0]["nodes"] = json!([0, 2, 3]);
+            },
+            "node 1 'sphere' is a child of both node 2 'left' and node 3 'right': a glTF node has one parent at most",
+        ),
+        ("own_child.glb", |json| json["nodes"][0]["children"] = json!([0]), "node 0 'ground' is its own child"),
+        (
+            "root_twice.glb",
+            |json| json["scenes"][0]["nodes"] = json!([0, 1, 0]),
+            "scene 0 lists node 0 'ground' twice among its root nodes",
+        ),
+        (
+            "loop.glb",
+            |json| {
+                json["nodes"][0]["children"] = json!([1]);
+                json["nodes"][1]["children"] = json!([0]);
+            },
+            "scene 0 lists node 0 'ground' as a root node, but it is a child of node 1 'sphere'",
+        ),
+    ];
+    for (name, edit, problem) in cases {
+        edited(&case, name, |json, _| edit(json));
+        case.refused(&[name], name, problem);
+    }
+}
+
+#[test]
 fn a_scene_of_slivers_the_unwrap_cannot_chart_is_refused_as_such() {
     // Triangles of area (20 m long, 1 µm wide) that xatlas drops as
     // degenerate: the density is not the user's to raise.
