@@ -38,8 +38,9 @@ pub fn read(path: &Path) -> io::Result<Vec<u8>> {
 /// hold them: at most `ratio` decoded bytes per byte, the format's densest
 /// coding. Checked before anything is allocated for the texels.
 pub fn check_declared(width: u64, height: u64, bytes_per_texel: u64, length: u64, ratio: u64) -> Result<(), String> {
-    let decoded = width.saturating_mul(height).saturating_mul(bytes_per_texel);
-    if decoded > length.saturating_mul(ratio) {
+    // In u128, so that the figure shown is the true one for any 32-bit width and height.
+    let decoded = u128::from(width).saturating_mul(u128::from(height)).saturating_mul(u128::from(bytes_per_texel));
+    if decoded > u128::from(length) * u128::from(ratio) {
         return Err(format!(
             "the header declares {width}×{height} texels ({decoded} bytes decoded), more than the file's {length} \
              bytes can hold"
