@@ -82,8 +82,9 @@ impl Reporter {
         }
     }
 
+    /// "scene stage", as the terminal shows it: a scene is named after its file, whose name may hold control characters.
     fn label(&self) -> String {
-        if self.scene.is_empty() { self.name.clone() } else { format!("{} {}", self.scene, self.name) }
+        printable(&if self.scene.is_empty() { self.name.clone() } else { format!("{} {}", self.scene, self.name) })
     }
 
     /// A one-line message outside any stage (e.g. which adapter runs), as event `event` in JSON.
@@ -258,7 +259,7 @@ impl Summary {
         row(
             "lights",
             match &self.environment {
-                Some(env) => format!("{} from {}", self.lights, env.display()),
+                Some(env) => format!("{} from {}", self.lights, printable(&env.display().to_string())),
                 None => "none: lit by emissive materials only".to_string(),
             },
         );
@@ -266,7 +267,7 @@ impl Summary {
             row("memory", format!("{:.0} MiB peak resident", peak as f64 / (1u64 << 20) as f64));
         }
         for s in &self.scenes {
-            out.push_str(&format!("{}  ({:.2} s)\n", s.name, s.seconds));
+            out.push_str(&format!("{}  ({:.2} s)\n", printable(&s.name), s.seconds));
             let mut row = |key: &str, value: String| out.push_str(&format!("  {key:<8} {value}\n"));
             row(
                 "texels",
@@ -300,10 +301,10 @@ impl Summary {
                 );
             }
             for (i, path) in s.outputs.iter().enumerate() {
-                row(if i == 0 { "wrote" } else { "" }, path.display().to_string());
+                row(if i == 0 { "wrote" } else { "" }, printable(&path.display().to_string()));
             }
         }
-        out.push_str(&format!("{:<10} {}\n", "report", self.report.display()));
+        out.push_str(&format!("{:<10} {}\n", "report", printable(&self.report.display().to_string())));
         out
     }
 }

@@ -995,6 +995,26 @@ fn command_line_errors_are_one_line_naming_the_option_value_and_range() {
 }
 
 #[test]
+fn a_file_name_with_control_characters_is_printed_escaped_in_the_log() {
+    // The scene is named after its file: its stage lines and the summary
+    // must neither split nor send the terminal an escape sequence.
+    let case = Case::new();
+    let name = "a\nb\x1b[31m.glb";
+    std::fs::copy(fixture("sphere_on_ground.glb"), case.path(name)).unwrap();
+    let env = fixture("sky_constant.hdr");
+    let output = common::bake_command()
+        .current_dir(case.dir.path())
+        .args([name, "--env", env.to_str().unwrap(), "-o", "out", "--max-atlas-size", "32", "--lights", "16"])
+        .output()
+        .unwrap();
+    let log = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{log}");
+    assert!(!log.contains('\x1b'), "an escape sequence reached the terminal: {log:?}");
+    assert!(log.lines().any(|l| l.contains("a\\nb\\u{1b}[31m import: ")), "{log}");
+    assert!(log.lines().any(|l| l.contains("out/a\\nb\\u{1b}[31m.glb")), "{log}");
+}
+
+#[test]
 fn control_characters_from_the_input_are_escaped() {
     let case = Case::new();
     let (json, bin) = parts();
