@@ -34,6 +34,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 
 use crate::colour::luminance;
+use crate::progress::printable;
 use crate::report::{EnergyStats, OLDEST_READABLE_VERSION, PrimitiveEnergy, Report, SCHEMA_VERSION, SceneReport};
 
 /// Exit code: every check passed.
@@ -133,9 +134,10 @@ impl Findings {
                     (_, None) => "missing".to_string(),
                     _ => c.relative().map_or("from 0".to_string(), |r| format!("{:+.2}%", r * 100.0)),
                 };
+                // Names come from the reports, which may hold control characters.
                 rows.push([
-                    c.scene.clone(),
-                    c.mesh.clone(),
+                    printable(&c.scene),
+                    printable(&c.mesh),
                     c.metric.clone(),
                     c.golden.map_or("—".into(), format_value),
                     c.now.map_or("—".into(), format_value),
@@ -157,10 +159,13 @@ impl Findings {
             }
         }
         for v in &self.violations {
-            out.push_str(&format!("invariant: {}: {}\n", v.scene, v.message));
+            out.push_str(&format!("invariant: {}: {}\n", printable(&v.scene), printable(&v.message)));
         }
         let against = match &self.golden {
-            Some(golden) => format!(", {} figures compared with {} at ±{percent}", self.compared, golden.display()),
+            Some(golden) => {
+                let golden = printable(&golden.display().to_string());
+                format!(", {} figures compared with {golden} at ±{percent}", self.compared)
+            }
             None => ", no golden report given".to_string(),
         };
         let lightmaps = if self.lightmaps.is_empty() {

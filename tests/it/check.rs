@@ -287,6 +287,23 @@ fn every_fixture_keeps_the_invariants_as_the_ci_example_bakes_it() {
 }
 
 #[test]
+fn names_a_report_holds_are_printed_with_control_characters_escaped() {
+    // A report is input to `bake check`: its names must not split the
+    // table's rows or send the terminal an escape sequence (here, clear screen).
+    let dir = tempfile::tempdir().unwrap();
+    bake_fixture(dir.path());
+    let d = dir.path();
+    let mut moved = read(&d.join("out/report.json"));
+    scale_mesh(&mut moved, 0, 1.2);
+    moved["scenes"][0]["energy"][0]["name"] = "ground\u{1b}[2J\nX".into();
+    write(&d.join("moved.json"), &moved);
+    let (code, text) = check(d, &["out/report.json", "--against", "moved.json"]);
+    assert_eq!(code, Some(1), "{text}");
+    assert!(!text.contains('\x1b'), "an escape sequence reached the terminal: {text:?}");
+    assert!(text.lines().any(|l| l.contains("ground\\u{1b}[2J\\nX (node 0") && l.contains('%')), "{text}");
+}
+
+#[test]
 fn exit_codes_are_the_documented_ones() {
     let dir = tempfile::tempdir().unwrap();
     bake_fixture(dir.path());
