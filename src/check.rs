@@ -29,7 +29,8 @@
 //! See `invariants` and `lightmap_violations`; each is defined in
 //! `schema/report.schema.json` under "Invariants" and in the README.
 
-use std::path::{Path, PathBuf};
+use std::ffi::OsStr;
+use std::path::{Component, Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 
@@ -278,6 +279,7 @@ pub fn run(options: &CheckOptions) -> Result<Findings> {
         _ => (target.clone(), None),
     };
     let report = read_report(&report_path)?;
+    check_scene_names(&report, &report_path)?;
     if let Some(name) = &only_scene
         && !report.scenes.iter().any(|s| &s.name == name)
     {
@@ -551,11 +553,44 @@ pub fn energy_balance(scene: &SceneReport) -> Result<Balance, String> {
     Ok(balance)
 }
 
+/// Refuses a report whose scene names are no plain file names (`../x`,
+/// `a/b`, `/x`): each scene's files are read beside the report by its name,
+/// and nothing outside the report's folder may be read.
+fn check_scene_names(report: &Report, path: &Path) -> Result<()> {
+    for (i, scene) in report.scenes.iter().enumerate() {
+        let mut parts = Path::new(&scene.name).components();
+        let plain = matches!(
+            (parts.next(), parts.next()),
+            (Some(Component::Normal(part)), None) if part == OsStr::new(&scene.name)
+        );
+        if !plain {
+            bail!(
+                "report '{}': scene {i} is named '{}', which is no file name: its lightmap would be read from \
+                 outside the report's folder",
+                path.display(),
+                scene.name
+            );
+        }
+    }
+    Ok(())
+}
+
+/// `file_name` in the report's folder `dir`, refused where a symbolic link
+/// takes it outside that folder.
+fn beside_report(dir: &Path, file_name: String) -> Result<PathBuf> {
+    let path = dir.join(file_name);
+    if !crate::files::resolves_inside(&path, dir) {
+        bail!("'{}' resolves outside the report's folder (through a symbolic link): not read", path.display());
+    }
+    Ok(path)
+}
+
 /// Re-reads the scene's lightmap files beside its report, the EXR and the
 /// KTX2. A bake writes both for every scene: one that is gone, or is no
 /// file, is a failed check, never a pass unchecked.
 fn check_lightmap_files(dir: &Path, scene: &SceneReport, findings: &mut Findings) -> Result<()> {
-    let path = |extension: &str| dir.join(format!("{}.lightmap{}.{extension}", scene.name, scene.atlas.index));
+    let path =
+        |extension: &str| beside_report(dir, format!("{}.lightmap{}.{extension}", scene.name, scene.atlas.index));
     let unreadable = |path: &Path, e: std::io::Error| Violation {
         scene: scene.name.clone(),
         message: match e.kind() {
@@ -563,7 +598,7 @@ fn check_lightmap_files(dir: &Path, scene: &SceneReport, findings: &mut Findings
             _ => format!("lightmap '{}': {e}", path.display()),
         },
     };
-    let exr = path("exr");
+    let exr = path("exr")?;
     let (file, length) = match crate::files::open(&exr) {
         Ok(opened) => opened,
         Err(e) => {
@@ -574,7 +609,7 @@ fn check_lightmap_files(dir: &Path, scene: &SceneReport, findings: &mut Findings
     let (width, pixels) = read_lightmap_exr(&exr, file, length)?;
     findings.violations.extend(texel_violations(&exr, width, &pixels, scene));
     findings.lightmaps.push(exr);
-    let ktx2 = path("ktx2");
+    let ktx2 = path("ktx2")?;
     match crate::files::open(&ktx2) {
         Ok((file, length)) => {
             findings.violations.extend(ktx2_file_violations(&ktx2, file, length, &pixels, scene)?);
@@ -590,7 +625,7 @@ fn check_lightmap_files(dir: &Path, scene: &SceneReport, findings: &mut Findings
 /// negative. A file of another size is refused unread.
 fn probe_violations(dir: &Path, scene: &SceneReport, probes: usize) -> Result<Vec<Violation>> {
     use std::io::Read;
-    let path = dir.join(format!("{}.probes.bin", scene.name));
+    let path = beside_report(dir, format!("{}.probes.bin", scene.name))?;
     let say = |message: String| vec![Violation { scene: scene.name.clone(), message }];
     let (file, length) = match crate::files::open(&path) {
         Ok(opened) => opened,

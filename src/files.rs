@@ -25,6 +25,18 @@ pub fn open(path: &Path) -> io::Result<(File, u64)> {
     Ok((file, metadata.len()))
 }
 
+/// Whether `path`, resolved through symbolic links, lies in `folder` (an
+/// empty path is the current folder): a link inside a folder may point
+/// anywhere. A path that does not resolve (a missing file) counts as inside,
+/// left for its read to report.
+pub fn resolves_inside(path: &Path, folder: &Path) -> bool {
+    let folder = if folder.as_os_str().is_empty() { Path::new(".") } else { folder };
+    match (path.canonicalize(), folder.canonicalize()) {
+        (Ok(resolved), Ok(folder)) => resolved.starts_with(folder),
+        _ => true,
+    }
+}
+
 /// The whole of a regular file, reading no more than the length it had when opened.
 pub fn read(path: &Path) -> io::Result<Vec<u8>> {
     let (file, length) = open(path)?;

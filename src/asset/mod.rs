@@ -315,13 +315,8 @@ fn external_path(uri: &str, base: Option<&Path>) -> Result<PathBuf> {
         bail!("refusing '{uri}': it points outside the asset's folder");
     }
     let path = base.join(relative);
-    // A symbolic link inside the folder may point anywhere: the policy must
-    // hold for the path the file system resolves too. A path that does not
-    // resolve (a missing file) is left for the read to report.
-    let folder = if base.as_os_str().is_empty() { Path::new(".") } else { base };
-    if let (Ok(resolved), Ok(folder)) = (path.canonicalize(), folder.canonicalize())
-        && !resolved.starts_with(&folder)
-    {
+    // The policy must hold for the path the file system resolves too.
+    if !crate::files::resolves_inside(&path, base) {
         bail!("refusing '{uri}': it points outside the asset's folder (through a symbolic link)");
     }
     Ok(path)

@@ -287,6 +287,38 @@ fn every_fixture_keeps_the_invariants_as_the_ci_example_bakes_it() {
 }
 
 #[test]
+fn a_report_never_leads_check_to_read_outside_its_folder() {
+    // Scene names place the lightmaps check re-reads: one that climbs out
+    // ('../leak') or a lightmap linked to a file outside is refused (exit 2),
+    // not read.
+    let dir = tempfile::tempdir().unwrap();
+    bake_fixture(dir.path());
+    let d = dir.path();
+    for ext in ["exr", "ktx2"] {
+        let from = d.join(format!("out/sphere_on_ground.lightmap0.{ext}"));
+        std::fs::copy(&from, d.join(format!("leak.lightmap0.{ext}"))).unwrap();
+    }
+    std::fs::create_dir(d.join("climbs")).unwrap();
+    let mut report = read(&d.join("out/report.json"));
+    report["scenes"][0]["name"] = "../leak".into();
+    write(&d.join("climbs/report.json"), &report);
+    let (code, text) = check(d, &["climbs/report.json"]);
+    assert_eq!(code, Some(2), "{text}");
+    assert!(text.contains("report 'climbs/report.json': scene 0 is named '../leak', which is no file name"), "{text}");
+
+    std::fs::create_dir(d.join("linked")).unwrap();
+    std::fs::copy(d.join("out/report.json"), d.join("linked/report.json")).unwrap();
+    for ext in ["exr", "ktx2"] {
+        let target = d.join(format!("out/sphere_on_ground.lightmap0.{ext}"));
+        std::os::unix::fs::symlink(target, d.join(format!("linked/sphere_on_ground.lightmap0.{ext}"))).unwrap();
+    }
+    let (code, text) = check(d, &["linked/report.json"]);
+    assert_eq!(code, Some(2), "{text}");
+    assert!(text.contains("resolves outside the report's folder (through a symbolic link): not read"), "{text}");
+    assert_eq!(check(d, &["out/report.json"]).0, Some(0), "the bake's own folder passes");
+}
+
+#[test]
 fn names_a_report_holds_are_printed_with_control_characters_escaped() {
     // A report is input to `bake check`: its names must not split the
     // table's rows or send the terminal an escape sequence (here, clear screen).
