@@ -957,16 +957,30 @@ fn check_fails_when_the_lightmap_beside_the_report_is_missing_or_no_file() {
     );
     let lightmap = out.path().join("sphere_on_ground.lightmap0.exr");
     assert_eq!(check(out.path()).0, Some(0));
-    std::fs::remove_file(&lightmap).unwrap();
+    std::fs::rename(&lightmap, out.path().join("sphere_on_ground.lightmap0.exr.kept")).unwrap();
     let (code, text) = check(out.path());
     assert_eq!(code, Some(1), "{text}");
     assert!(text.contains("sphere_on_ground.lightmap0.exr") && text.contains("missing"), "{text}");
+    // Beside the report but no file: a folder, a FIFO (which must not block the check).
+    std::fs::create_dir(&lightmap).unwrap();
+    let fifo = out.path().join("sphere_on_ground.lightmap0.ktx2");
+    std::fs::remove_file(&fifo).unwrap();
+    assert!(Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    let (code, text) = check(out.path());
+    assert_ne!(code, Some(0), "{text}");
+    assert!(text.contains("sphere_on_ground.lightmap0.exr") && text.contains("not a regular file"), "{text}");
+    std::fs::remove_dir(&lightmap).unwrap();
+    std::fs::copy(out.path().join("sphere_on_ground.lightmap0.exr.kept"), &lightmap).unwrap();
+    let (code, text) = check(out.path());
+    assert_ne!(code, Some(0), "{text}");
+    assert!(text.contains("sphere_on_ground.lightmap0.ktx2") && text.contains("not a regular file"), "{text}");
+    // A link to a device or a folder outside is not even opened.
     for target in ["/dev/zero", "/"] {
         let _ = std::fs::remove_file(&lightmap);
         std::os::unix::fs::symlink(target, &lightmap).unwrap();
         let (code, text) = check(out.path());
-        assert_ne!(code, Some(0), "{text}");
-        assert!(text.contains("sphere_on_ground.lightmap0.exr") && text.contains("not a regular file"), "{text}");
+        assert_eq!(code, Some(2), "{text}");
+        assert!(text.contains("sphere_on_ground.lightmap0.exr") && text.contains("resolves outside"), "{text}");
     }
 }
 
