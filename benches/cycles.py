@@ -49,9 +49,11 @@ cycles_scene = helper("cycles_scene")
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 BLOCK = 4
 
-# bake's ladder, cheapest first: fewer environment lights and shooter patches,
+# bake's ladder, cheapest first: fewer environment lights, shadow rays and shooter patches,
 # a looser stop, then the defaults, then past them.
 LADDER = [
+    ["--lights", "64", "--direct-rays", "64", "--patches", "64", "--tolerance", "0.1", "--no-supersample",
+     "--no-contact-trace"],
     ["--lights", "64", "--patches", "64", "--tolerance", "0.1", "--no-supersample", "--no-contact-trace"],
     ["--lights", "256", "--patches", "256", "--tolerance", "0.03", "--no-supersample", "--no-contact-trace"],
     ["--lights", "256", "--patches", "256", "--tolerance", "0.03"],

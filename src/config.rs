@@ -89,6 +89,7 @@ impl From<&Config> for OptionsReport {
             env_intensity: env.intensity,
             clamp_nonfinite: env.clamp_nonfinite,
             light_batch_size: bake.solve.batch_size,
+            direct_rays: Some(bake.solve.direct_rays),
             tolerance: bake.solve.bounce.tolerance,
             max_shots: bake.solve.bounce.max_shots,
             max_seconds: bake.solve.bounce.max_seconds,

@@ -27,9 +27,9 @@ use crate::texelize::TexelSet;
 /// added a primitive's `instance` and the scene's `contact`, version 5 the
 /// scene's `punctual`, version 6 the direct pass's `rays` in place of its
 /// shadow-map size (and the option with it), version 8 the bounce pass's
-/// `passes` and the option `time_passes`; `bake check` still reads
-/// version 3.
-pub const SCHEMA_VERSION: u32 = 8;
+/// `passes` and the option `time_passes`, version 9 the option
+/// `direct_rays`; `bake check` still reads version 3.
+pub const SCHEMA_VERSION: u32 = 9;
 
 /// The oldest version `bake check` reads: every later change only added
 /// optional fields.
@@ -108,6 +108,9 @@ pub struct OptionsReport {
     pub env_intensity: f32,
     pub clamp_nonfinite: bool,
     pub light_batch_size: u32,
+    /// `--direct-rays` (absent before version 9).
+    #[serde(default)]
+    pub direct_rays: Option<u32>,
     pub tolerance: f64,
     pub max_shots: Option<u64>,
     pub max_seconds: Option<f64>,

@@ -15,7 +15,7 @@ use std::time::Instant;
 use anyhow::Result;
 use bake::environment::{Light, LightSet};
 use bake::gpu::{Gpu, read_buffer};
-use bake::solve::direct::{DirectPass, MAX_BATCH, light_records, power_per_ray};
+use bake::solve::direct::{DEFAULT_RAYS, DirectPass, MAX_BATCH, RayBudget, light_records};
 use bake::{Scene, Texel};
 
 /// Lights per dispatch, as the direct pass's largest batches.
@@ -67,8 +67,8 @@ struct BareParams {
 /// Times the real direct pass at `points`, then both bare kernels.
 pub fn measure(gpu: &Gpu, scene: &Scene, points: &[Texel], lights: &LightSet) -> Result<Ceiling> {
     let pass = DirectPass::new(gpu, scene)?;
-    let gathered = pass.gather(points, lights, MAX_BATCH, &mut |_, _| {})?;
-    let kernels = Kernels::new(gpu, scene, points, power_per_ray(lights))?;
+    let gathered = pass.gather(points, lights, MAX_BATCH, DEFAULT_RAYS, &mut |_, _| {})?;
+    let kernels = Kernels::new(gpu, scene, points, RayBudget::new(lights, DEFAULT_RAYS))?;
     let light_loop = lights.lights.chunks(BATCH).map(|batch| kernels.light_loop(batch)).sum::<Result<f64>>()?;
     // As many rays a point as the pass cast on average.
     let per_point = (gathered.rays as f64 / points.len().max(1) as f64).round().max(1.0) as u32;
@@ -100,12 +100,12 @@ struct Kernels<'a> {
     sums: wgpu::Buffer,
     counts: wgpu::Buffer,
     point_count: u32,
-    /// The direct pass's `power_per_ray` for the light set (its records hold each light's rays).
-    power_per_ray: f32,
+    /// The direct pass's ray budget for the light set (its records hold each light's rays).
+    budget: RayBudget,
 }
 
 impl<'a> Kernels<'a> {
-    fn new(gpu: &'a Gpu, scene: &Scene, points: &[Texel], power_per_ray: f32) -> Result<Kernels<'a>> {
+    fn new(gpu: &'a Gpu, scene: &Scene, points: &[Texel], budget: RayBudget) -> Result<Kernels<'a>> {
         let gpu_scene = bake::trace::GpuScene::new(gpu, scene)?;
         let scene_layout = bake::trace::GpuScene::bind_group_layout(gpu);
         let compute = wgpu::ShaderStages::COMPUTE;
@@ -161,7 +161,7 @@ impl<'a> Kernels<'a> {
                 wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
             ),
             point_count: points.len() as u32,
-            power_per_ray,
+            budget,
         })
     }
 
@@ -179,7 +179,7 @@ impl<'a> Kernels<'a> {
         };
         let params = gpu.uniform_buffer("ceiling params", &params);
         let records =
-            gpu.uniform_buffer("ceiling lights", &light_records(lights, &vec![true; lights.len()], self.power_per_ray));
+            gpu.uniform_buffer("ceiling lights", &light_records(lights, &vec![true; lights.len()], &self.budget));
         let buffers = [&params, &records, &self.points, &self.sums, &self.counts];
         let group = bake::gpu::bind_buffers(gpu, "ceiling", &self.layout, &buffers);
         gpu.wait()?;

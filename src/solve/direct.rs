@@ -9,8 +9,9 @@
 //! and only lights whose cone reaches it get rays, traced through the
 //! scene's hierarchy on the GPU (`trace`). Rays are spread over a light's
 //! cone, turned per point, so a penumbra is soft and unbiased, and a wide or
-//! bright light gets more of them (`ray_count`). With twice as many lights
-//! as `RAYS`, small neighbouring ones share their rays (`light_clusters`).
+//! bright light gets more of them (`RayBudget`, `ray_count`). With twice as
+//! many lights as the budget's rays, small neighbouring ones share their
+//! rays (`light_clusters`).
 //!
 //! A CPU driver stops a shader's loops after 65,535 turns in all; the
 //! points where that cut a batch short add nothing, and the batch is
@@ -35,11 +36,9 @@ use crate::trace::GpuScene;
 /// a lane's loops turn as often as the busiest lane's of its group, batch
 /// by batch, so fewer batches turn fewer times in all.
 pub const MAX_BATCH: u32 = 1024;
-/// Rays a point may cast in all where every light may be blocked: a light
-/// gets at least one, and more as it is wide (one per 1/`RAYS` of the
-/// sphere) or bright (one per 1/`RAYS` of the set's power), so that what a
-/// point's rays miss of a penumbra is spread evenly over the light.
-const RAYS: f32 = 1024.0;
+/// Rays a point may cast in all where every light may be blocked, unless
+/// `--direct-rays` says otherwise (`RayBudget`).
+pub const DEFAULT_RAYS: u32 = 1024;
 /// Most rays one light gets at one point (the first few of them spread over
 /// its cone; the rest where those disagree, solve_direct.wgsl).
 const MAX_RAYS: u32 = 64;
@@ -191,8 +190,7 @@ struct Batches<'a> {
     rays: u64,
     /// Nodes and triangles the rays' walks visited (a benchmark's figure).
     visits: u64,
-    /// Luminance of L·Ω that earns a light one ray (`RAYS`).
-    power_per_ray: f32,
+    budget: RayBudget,
 }
 
 impl Batches<'_> {
@@ -220,7 +218,7 @@ impl Batches<'_> {
             _pad: [0; 2],
         };
         let params = gpu.uniform_buffer("solve_direct params", &params);
-        let records = light_records(lights, starts, self.power_per_ray);
+        let records = light_records(lights, starts, &self.budget);
         let lights_buffer = gpu.uniform_buffer("solve_direct lights", &records);
         let list = listed.map_or(&self.no_list, |l| &l.buffer);
         let buffers =
@@ -288,9 +286,9 @@ struct PointList {
 /// 32nd light the bits of its word's lights that start a cluster, and its
 /// cluster's size and rays (`light_clusters`: a cluster runs from a light
 /// that `starts` one to the next).
-pub fn light_records(lights: &[Light], starts: &[bool], power_per_ray: f32) -> [[f32; 4]; 3 * MAX_BATCH as usize] {
+pub fn light_records(lights: &[Light], starts: &[bool], budget: &RayBudget) -> [[f32; 4]; 3 * MAX_BATCH as usize] {
     let mut records = [[0.0; 4]; 3 * MAX_BATCH as usize];
-    let wanted = wanted_rays(lights, power_per_ray);
+    let wanted = budget.wanted(lights);
     let members = light_clusters::memberships(starts, &wanted, |k| ray_count(wanted[k]));
     for (((slot, light), member), wanted) in records.chunks_exact_mut(3).zip(lights).zip(&members).zip(wanted) {
         let omega = light.solid_angle;
@@ -314,16 +312,36 @@ pub fn light_records(lights: &[Light], starts: &[bool], power_per_ray: f32) -> [
     records
 }
 
-/// The rays each light earns, before rounding up (`wanted_ray`).
-fn wanted_rays(lights: &[Light], power_per_ray: f32) -> Vec<f32> {
-    let power = |l: &Light| luminance(l.radiance.map(|c| c * l.solid_angle)) as f32;
-    lights.iter().map(|l| wanted_ray(l.solid_angle, power(l) / power_per_ray)).collect()
+/// How a point's rays are shared out among a light set's lights where
+/// something may block them: `rays` in all, a light getting at least one,
+/// and more as it is wide (one per 1/`rays` of the sphere) or bright (one
+/// per 1/`rays` of the set's power), so that what a point's rays miss of a
+/// penumbra is spread evenly over the light.
+#[derive(Clone, Copy, Debug)]
+pub struct RayBudget {
+    rays: f32,
+    /// Luminance of L·Ω that earns a light one ray.
+    power_per_ray: f32,
 }
 
-/// The rays a light of `omega` sr carrying `share` rays' worth of power
-/// earns: one per 1/`RAYS` of the sphere or of the power, whichever is more.
-fn wanted_ray(omega: f32, share: f32) -> f32 {
-    (omega * RAYS / (4.0 * std::f32::consts::PI)).max(share)
+impl RayBudget {
+    pub fn new(lights: &LightSet, rays: u32) -> RayBudget {
+        let rays = rays.max(1) as f32;
+        let total: f64 = lights.lights.iter().map(power).sum();
+        RayBudget { rays, power_per_ray: (total / rays as f64).max(f64::MIN_POSITIVE) as f32 }
+    }
+
+    /// The rays each light earns, before rounding up: one per 1/`rays` of
+    /// the sphere or of the power, whichever is more.
+    fn wanted(&self, lights: &[Light]) -> Vec<f32> {
+        let sphere = |omega: f32| omega * self.rays / (4.0 * std::f32::consts::PI);
+        lights.iter().map(|l| sphere(l.solid_angle).max(power(l) as f32 / self.power_per_ray)).collect()
+    }
+}
+
+/// A light's power, luminance of L·Ω.
+fn power(light: &Light) -> f64 {
+    luminance(light.radiance.map(|c| c * light.solid_angle))
 }
 
 /// Rays a light that earns `wanted` gets where something may block it, alone.
@@ -360,6 +378,7 @@ impl<'a> DirectPass<'a> {
         points: &[Texel],
         lights: &LightSet,
         batch_size: u32,
+        rays: u32,
         progress: &mut dyn FnMut(u64, u64),
     ) -> Result<Gathered> {
         let start = Instant::now();
@@ -370,7 +389,8 @@ impl<'a> DirectPass<'a> {
         let occluder_buffer =
             self.occluders.record(gpu, &mut encoder, &self.scene_group, &point_buffer, point_count as u32);
         gpu.queue.submit([encoder.finish()]);
-        let clustered = light_clusters::clustered(lights.lights.len(), RAYS);
+        let budget = RayBudget::new(lights, rays);
+        let clustered = light_clusters::clustered(lights.lights.len(), budget.rays);
         let mut batches = Batches {
             gpu,
             pass: &self.gather,
@@ -393,9 +413,9 @@ impl<'a> DirectPass<'a> {
             point_count: point_count as u32,
             rays: 0,
             visits: 0,
-            power_per_ray: power_per_ray(lights),
+            budget,
         };
-        let wanted = wanted_rays(&lights.lights, batches.power_per_ray);
+        let wanted = budget.wanted(&lights.lights);
         let (ordered, starts) = light_clusters::order(&lights.lights, &wanted, clustered);
         let batch = batch_size.clamp(1, MAX_BATCH) as usize;
         let total = lights.lights.len() as u64;
@@ -455,12 +475,6 @@ impl Gathered {
     }
 }
 
-/// Luminance of L·Ω that earns a light one ray (`RAYS`).
-pub fn power_per_ray(lights: &LightSet) -> f32 {
-    let total: f64 = lights.lights.iter().map(|l| luminance(l.radiance.map(|c| c * l.solid_angle))).sum();
-    (total / RAYS as f64).max(f64::MIN_POSITIVE) as f32
-}
-
 /// Gathers the environment's light at every texel (no sub-samples).
 #[cfg(feature = "internals")]
 pub fn run(
@@ -471,7 +485,8 @@ pub fn run(
     options: &super::SolveOptions,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Direct> {
-    let gathered = DirectPass::new(gpu, scene)?.gather(&texels.texels, lights, options.batch_size, progress)?;
+    let pass = DirectPass::new(gpu, scene)?;
+    let gathered = pass.gather(&texels.texels, lights, options.batch_size, options.direct_rays, progress)?;
     Ok(gathered.into_direct(texels, lights))
 }
 

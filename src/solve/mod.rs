@@ -56,6 +56,8 @@ use punctual::{Punctual, PunctualStats};
 pub struct SolveOptions {
     /// Lights gathered per GPU batch of the direct pass (at most `direct::MAX_BATCH`).
     pub batch_size: u32,
+    /// The direct pass's rays a point (`direct::RayBudget`).
+    pub direct_rays: u32,
     /// Gather texels on a sharp change of direct light at sub-samples of
     /// their footprint (`supersample`).
     pub supersample: bool,
@@ -72,6 +74,7 @@ impl Default for SolveOptions {
     fn default() -> Self {
         SolveOptions {
             batch_size: 1024,
+            direct_rays: direct::DEFAULT_RAYS,
             supersample: true,
             contact: true,
             punctual: true,
@@ -396,7 +399,8 @@ fn direct_light_with(
     let start = std::time::Instant::now();
     let pass = environment.map(|_| direct::DirectPass::new(gpu, scene)).transpose()?;
     let gather = |points: &[Texel], lights: &LightSet, progress: &mut dyn FnMut(u64, u64)| {
-        pass.as_ref().expect("a pass where there are lights").gather(points, lights, options.batch_size, progress)
+        let pass = pass.as_ref().expect("a pass where there are lights");
+        pass.gather(points, lights, options.batch_size, options.direct_rays, progress)
     };
     let mut direct = environment
         .map(|lights| Ok::<_, anyhow::Error>(gather(&texels.texels, lights, progress)?.into_direct(texels, lights)))

@@ -9,12 +9,21 @@ use crate::common;
 use bake::environment::{EnvironmentMap, Light, LightMode};
 use bake::fixtures::{MeshData, Placement, SceneBuilder};
 use bake::gpu::Gpu;
+use bake::solve::direct::DEFAULT_RAYS;
 use bake::texelize::Texel;
 use glam::{Quat, Vec3, Vec3Swizzles};
 
+/// Also on a small ray budget (`--direct-rays`), which shares fewer rays
+/// out among the same lights: a sixteenth of the rays keeps the shadow's
+/// analytic depth.
 #[test]
 fn sphere_darkens_the_ground_beneath_it_by_the_analytic_amount() {
-    sphere_darkens_the_ground(LightMode::Budget { count: 512 });
+    let rays = [DEFAULT_RAYS, DEFAULT_RAYS / 16].map(|budget| {
+        let baked = sphere_darkens_the_ground(LightMode::Budget { count: 512 }, budget);
+        baked.solution.direct.expect("an environment: a direct pass").rays
+    });
+    eprintln!("rays cast: {} on the default budget, {} on a sixteenth of it", rays[0], rays[1]);
+    assert!(rays[1] * 4 < rays[0], "a smaller budget casts fewer rays: {rays:?}");
 }
 
 /// With twice as many lights as rays for the sphere, neighbouring small ones share
@@ -23,13 +32,13 @@ fn sphere_darkens_the_ground_beneath_it_by_the_analytic_amount() {
 #[test]
 fn sphere_darkens_the_ground_by_the_analytic_amount_when_small_lights_share_rays() {
     for mode in [LightMode::Cube { face_size: 32 }, LightMode::Budget { count: 4096 }] {
-        let baked = sphere_darkens_the_ground(mode);
+        let baked = sphere_darkens_the_ground(mode, DEFAULT_RAYS);
         let direct = baked.solution.direct.expect("an environment: a direct pass");
         eprintln!("{mode}: {} lights, {} rays", direct.lights, direct.rays);
     }
 }
 
-fn sphere_darkens_the_ground(mode: LightMode) -> bake::Baked {
+fn sphere_darkens_the_ground(mode: LightMode, rays: u32) -> bake::Baked {
     let gpu = common::gpu();
     let (radius, height) = (1.0f32, 1.5f32);
     let mut builder = SceneBuilder::new();
@@ -43,7 +52,9 @@ fn sphere_darkens_the_ground(mode: LightMode) -> bake::Baked {
     );
     let sky = 1.0;
     let lights = common::lights(&EnvironmentMap::horizon([sky; 3]), mode);
-    let baked = common::bake(&gpu, &builder, &lights, &common::options(256));
+    let mut options = common::options(256);
+    options.solve.direct_rays = rays;
+    let baked = common::bake(&gpu, &builder, &lights, &options);
     let ground = common::values_of(&baked, 0);
 
     let below: Vec<f32> = ground.iter().filter(|(t, _)| t.position().xz().length() < 0.1).map(|(_, v)| *v).collect();
@@ -51,7 +62,11 @@ fn sphere_darkens_the_ground(mode: LightMode) -> bake::Baked {
     assert!(!below.is_empty() && !far.is_empty());
     let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
     let expected = sky * (1.0 - (radius / height).powi(2));
-    eprintln!("{mode}: below the sphere {:.4} (expected {expected:.4}), far away {:.4}", mean(&below), mean(&far));
+    eprintln!(
+        "{mode}, {rays} rays: below the sphere {:.4} (expected {expected:.4}), far away {:.4}",
+        mean(&below),
+        mean(&far)
+    );
     assert!((mean(&below) / expected - 1.0).abs() < 0.03, "below: {} vs {expected}", mean(&below));
     assert!(mean(&far) > 0.97 * sky, "far: {}", mean(&far));
     assert!(mean(&below) < 0.7 * mean(&far));
