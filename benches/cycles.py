@@ -55,6 +55,8 @@ LADDER = [
     ["--lights", "64", "--direct-rays", "64", "--patches", "64", "--tolerance", "0.1", "--no-supersample",
      "--no-contact-trace"],
     ["--lights", "64", "--patches", "64", "--tolerance", "0.1", "--no-supersample", "--no-contact-trace"],
+    ["--lights", "256", "--direct-rays", "64", "--patches", "256", "--tolerance", "0.03", "--no-supersample",
+     "--no-contact-trace"],
     ["--lights", "256", "--patches", "256", "--tolerance", "0.03", "--no-supersample", "--no-contact-trace"],
     ["--lights", "256", "--patches", "256", "--tolerance", "0.03"],
     [],

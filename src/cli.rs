@@ -461,8 +461,6 @@ mod tests {
             "2.5",
             "--patches",
             "300",
-            "--direct-rays",
-            "96",
             "--adapter",
             "llvmpipe",
             "--log-format",
@@ -499,7 +497,6 @@ mod tests {
         assert_eq!(config.bake.solve.bounce.max_shots, Some(100));
         assert_eq!(config.bake.solve.bounce.max_seconds, Some(2.5));
         assert_eq!(config.bake.solve.bounce.patches, 300);
-        assert_eq!(config.bake.solve.direct_rays, 96);
         assert_eq!(config.adapter.as_deref(), Some("llvmpipe"));
         assert_eq!(config.log, LogMode::Json);
         assert!(config.report.plot);
@@ -540,6 +537,12 @@ mod tests {
         let args = Args::try_parse_from(["bake", "a.glb", "check", "--env", "sky.exr"]).unwrap();
         assert!(args.command.is_none());
         assert_eq!(args.inputs, vec![PathBuf::from("a.glb"), PathBuf::from("check")]);
+    }
+
+    #[test]
+    fn the_direct_pass_ray_budget_parses() {
+        let config = parse(&["a.glb", "--direct-rays", "96"]).unwrap();
+        assert_eq!(config.bake.solve.direct_rays, 96);
     }
 
     #[test]
