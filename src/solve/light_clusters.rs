@@ -1,7 +1,7 @@
 //! Lights too small to earn a ray each share them (the direct pass's
 //! clusters, after Lightcuts: Walter et al. 2005). A light earns rays by its
-//! share of the sphere or of the power (`direct::RayBudget`'s rays in all); with more
-//! lights than that, each would still get one where something may block it,
+//! share of the sphere or of the power (`direct::RayBudget`'s rays in all);
+//! with more lights than that, each would still get one where something may block it,
 //! and rays would grow with the light count rather than with what the
 //! scene's shadows need. Neighbouring small lights are grouped instead, a
 //! group earning the rays its members earn together, and a point casts them
