@@ -4,6 +4,10 @@ use anyhow::{Result, anyhow};
 
 use super::Gpu;
 
+/// How long a read-back waits for its mapping's callback once the GPU work
+/// is done: a thread sharing the device may be running it.
+const CALLBACK_GRACE: std::time::Duration = std::time::Duration::from_secs(5);
+
 /// Reads the first `count` elements of `buffer` (which needs COPY_SRC).
 pub fn read_buffer<T: bytemuck::Pod>(gpu: &Gpu, buffer: &wgpu::Buffer, count: usize) -> Result<Vec<T>> {
     let size = (count * std::mem::size_of::<T>()) as u64;
@@ -25,10 +29,11 @@ pub fn read_buffer<T: bytemuck::Pod>(gpu: &Gpu, buffer: &wgpu::Buffer, count: us
         let _ = sender.send(result);
     });
     gpu.wait()?;
-    // A completed wait has run every callback of the work it waited for:
-    // nothing here means the mapping was dropped, and blocking would hang.
+    // A completed wait has run this mapping's callback, or another thread
+    // polling the same device has taken it and is about to run it. A dropped
+    // mapping drops the sender, so this waits only on that other thread.
     receiver
-        .try_recv()
+        .recv_timeout(CALLBACK_GRACE)
         .map_err(|_| anyhow!("GPU read-back was abandoned"))?
         .map_err(|e| anyhow!("GPU read-back failed: {e}"))?;
     let data = staging.slice(..).get_mapped_range().map_err(|e| anyhow!("GPU read-back failed: {e:?}"))?;
@@ -58,4 +63,34 @@ pub fn read_elements<T: bytemuck::Pod>(gpu: &Gpu, buffer: &wgpu::Buffer, indices
     }
     gpu.queue.submit([encoder.finish()]);
     read_buffer(gpu, &gathered, indices.len())
+}
+
+#[cfg(test)]
+mod tests {
+    use wgpu::util::DeviceExt;
+
+    use super::*;
+
+    /// Two threads reading back through one device: each one's wait may be
+    /// the poll that runs the other's mapping callback.
+    #[test]
+    fn threads_sharing_a_device_each_read_back_their_own_buffer() {
+        let gpu = Gpu::new(None).expect("an adapter");
+        std::thread::scope(|scope| {
+            for seed in [1u32, 2] {
+                let gpu = &gpu;
+                scope.spawn(move || {
+                    let values: Vec<u32> = (0..256).map(|i| i * seed).collect();
+                    let buffer = gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: None,
+                        contents: bytemuck::cast_slice(&values),
+                        usage: wgpu::BufferUsages::COPY_SRC,
+                    });
+                    for _ in 0..1000 {
+                        assert_eq!(read_buffer::<u32>(gpu, &buffer, values.len()).unwrap(), values);
+                    }
+                });
+            }
+        });
+    }
 }
