@@ -255,6 +255,7 @@ fn punctual_light(
         node: node.index(),
         light: light.index(),
         name: light.name().map(str::to_string),
+        label: what,
         kind,
         position,
         direction,

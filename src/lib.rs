@@ -196,6 +196,12 @@ pub fn bake_scene(
         let summary = solve_summary(&solution, &texels);
         Ok((solution, summary))
     })?;
+    if let Some(punctual) = &solution.punctual {
+        for notice in solve::punctual::dark_light_notices(&scene.lights, &punctual.dark, &texels.texels) {
+            progress.notice(&notice);
+            notices.push(notice);
+        }
+    }
     let probes = match probe_plan {
         Some((probe_options, grid)) => Some(stage(gpu, progress, &mut stages, &name, "probes", |progress| {
             let solved = probes::Solved { scene: &scene, atlas: &atlas, texels: &texels, solution: &solution };

@@ -203,6 +203,9 @@ pub struct PunctualLight {
     pub node: usize,
     pub light: usize,
     pub name: Option<String>,
+    /// How notices name it: its index and name and its node's
+    /// ("light 1 'bulb' on node 2 'hall'").
+    pub label: String,
     pub kind: LightKind,
     /// In scene coordinates (world − `Scene::origin`); unused by a
     /// directional light.

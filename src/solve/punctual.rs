@@ -5,19 +5,23 @@
 //! with V_k from one exact shadow ray on the CPU that passes alpha cut-outs
 //! as the bake's depth maps do. A delta light casts a hard shadow: the
 //! supersample fix-up anti-aliases its edge as it does the environment's
-//! (`solve::direct_light_with` gathers both together).
+//! (`solve::direct_light_with` gathers both together). A light that lit no
+//! point is named in a notice (`dark_light_notices`).
 //!
 //! A shading normal leaning past its triangle's plane weighs the light by
 //! its own cosine, and a ray below the plane is turned to skim it, as the
 //! direct pass and the contact fix-up do: light the normal faces is not
 //! blocked by the texel's own facet.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::contact::skim_above;
-use crate::scene::{PunctualLight, Scene};
+use crate::limits::figure;
+use crate::scene::{LightKind, PunctualLight, Scene};
 use crate::texelize::Texel;
 use crate::trace::Surfaces;
 
@@ -49,6 +53,10 @@ pub struct PunctualStats {
     /// m²; lm when the lights are in candela and lux). The report's energy
     /// balance counts it as direct light.
     pub power_received: [f64; 3],
+    /// The lights (indices into `Scene::lights`) that lit no point: each
+    /// gets a notice (`dark_light_notices`), which the report carries.
+    #[serde(skip)]
+    pub dark: Vec<usize>,
 }
 
 /// The scene's punctual lights and its surfaces for their shadow rays.
@@ -57,13 +65,16 @@ pub struct Punctual<'a> {
     /// Only its shadow rays are used: exact, through cut-outs.
     surfaces: &'a Surfaces,
     stats: std::sync::Mutex<PunctualStats>,
+    /// Per light: whether it has lit any point yet.
+    reached: Vec<AtomicBool>,
 }
 
 impl<'a> Punctual<'a> {
     /// The pass for `scene`'s lights, its shadow rays through `occluders`.
     pub fn new(scene: &'a Scene, occluders: &'a Surfaces) -> Punctual<'a> {
         let stats = PunctualStats { lights: scene.lights.len(), ..Default::default() };
-        Punctual { lights: &scene.lights, surfaces: occluders, stats: std::sync::Mutex::new(stats) }
+        let reached = scene.lights.iter().map(|_| AtomicBool::new(false)).collect();
+        Punctual { lights: &scene.lights, surfaces: occluders, stats: std::sync::Mutex::new(stats), reached }
     }
 
     /// Irradiance E (RGB) at each texel, in order: points on the surface.
@@ -98,6 +109,7 @@ impl<'a> Punctual<'a> {
             }
             sum
         });
+        stats.dark = (0..self.lights.len()).filter(|&k| !self.reached[k].load(Ordering::Relaxed)).collect();
         stats
     }
 
@@ -116,13 +128,42 @@ impl<'a> Punctual<'a> {
         };
         let origin = start + face * room;
         let mut sum = DVec3::ZERO;
-        for light in self.lights {
+        for (light, reached) in self.lights.iter().zip(&self.reached) {
             let Some(incident) = light.towards(origin) else { continue };
             let cos = n.dot(incident.direction);
             if cos > 0.0 && !self.surfaces.blocked(origin, skim_above(incident.direction, face), incident.distance) {
                 sum += incident.irradiance * cos;
+                // Loaded first: a store on every lit point would make the
+                // threads fight over the flag's cache line.
+                if !reached.load(Ordering::Relaxed) {
+                    reached.store(true, Ordering::Relaxed);
+                }
             }
         }
         sum
     }
+}
+
+/// One notice for each light in `dark` (indices into `lights`) that lit
+/// none of the points `texels`: a user whose lamp vanished from the bake is
+/// told which and, where it is its range, why.
+pub fn dark_light_notices(lights: &[PunctualLight], dark: &[usize], texels: &[Texel]) -> Vec<String> {
+    let nearest = |p: DVec3| texels.iter().map(|t| t.position().as_dvec3().distance(p)).fold(f64::INFINITY, f64::min);
+    dark.iter()
+        .map(|&k| {
+            let light = &lights[k];
+            let what = format!("{} lights no texel", light.label);
+            let distance = nearest(light.position);
+            match light.range {
+                Some(range) if light.kind != LightKind::Directional && range <= distance => format!(
+                    "{what}: its range ({} m) ends before the nearest surface, {} m away",
+                    figure(range),
+                    if distance >= 1e-3 { format!("{distance:.3}") } else { figure(distance) }
+                ),
+                _ => format!(
+                    "{what}: every surface in its reach faces away from it, lies outside its cone or is shadowed"
+                ),
+            }
+        })
+        .collect()
 }

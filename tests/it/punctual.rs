@@ -364,3 +364,22 @@ fn lights_are_placed_by_their_nodes_and_one_scaled_to_nothing_is_left_out() {
         "{notices:?}"
     );
 }
+
+#[test]
+fn a_light_that_lights_no_texel_is_named_with_the_reason() {
+    // Over the ground, 2 m up: a lamp whose range ends half a metre out, a
+    // spot turned to the sky, and a lamp that lights the ground.
+    let short = json!({ "type": "point", "intensity": 10.0, "range": 0.5, "name": "short" });
+    let mut scene = ground_under(short, Placement::at(Vec3::Y * 2.0));
+    let upward = json!({ "type": "spot", "intensity": 10.0, "name": "upward", "spot": { "outerConeAngle": 0.5 } });
+    scene.light("sky", upward, Placement::at(Vec3::Y * 2.0).rotated(pointing_down().inverse()));
+    scene.light("bulb", json!({ "type": "point", "intensity": 10.0 }), Placement::at(Vec3::Y * 2.0));
+    let baked = bake_lit_by_lamps(&scene, 32);
+    let dark: Vec<&String> = baked.notices.iter().filter(|n| n.contains("lights no texel")).collect();
+    eprintln!("{dark:#?}");
+    assert_eq!(dark.len(), 2, "only the two dark lights are named: {:?}", baked.notices);
+    assert!(dark[0].starts_with("light 0 'short' on node 1 'lamp' lights no texel: its range (0.5 m) ends before"));
+    assert!(dark[0].contains("nearest surface, 2.0"), "the ground is 2 m below it");
+    assert!(dark[1].starts_with("light 1 'upward' on node 2 'sky' lights no texel: every surface"));
+    assert!(ground_texels(&baked).iter().any(|&(_, v)| v > 0.0), "the third lamp lights the ground");
+}
