@@ -15,6 +15,7 @@ use std::time::Instant;
 use anyhow::Result;
 use bake::environment::{Light, LightSet};
 use bake::gpu::{Gpu, read_buffer};
+use bake::solve::SolveOptions;
 use bake::solve::direct::{DEFAULT_RAYS, DirectPass, MAX_BATCH, RayBudget, light_records};
 use bake::{Scene, Texel};
 
@@ -67,7 +68,8 @@ struct BareParams {
 /// Times the real direct pass at `points`, then both bare kernels.
 pub fn measure(gpu: &Gpu, scene: &Scene, points: &[Texel], lights: &LightSet) -> Result<Ceiling> {
     let pass = DirectPass::new(gpu, scene)?;
-    let gathered = pass.gather(points, lights, MAX_BATCH, DEFAULT_RAYS, &mut |_, _| {})?;
+    let options = SolveOptions { batch_size: MAX_BATCH, direct_rays: DEFAULT_RAYS, ..Default::default() };
+    let gathered = pass.gather(points, lights, &options, &mut |_, _| {})?;
     let kernels = Kernels::new(gpu, scene, points, RayBudget::new(lights, DEFAULT_RAYS))?;
     let light_loop = lights.lights.chunks(BATCH).map(|batch| kernels.light_loop(batch)).sum::<Result<f64>>()?;
     // As many rays a point as the pass cast on average.

@@ -372,13 +372,13 @@ impl<'a> DirectPass<'a> {
     }
 
     /// Gathers the environment's light at `points` (texels, or sub-samples
-    /// of them), in batches of at most `batch_size` lights.
+    /// of them), in batches of at most `options.batch_size` lights, on a
+    /// budget of `options.direct_rays` rays a point.
     pub fn gather(
         &self,
         points: &[Texel],
         lights: &LightSet,
-        batch_size: u32,
-        rays: u32,
+        options: &super::SolveOptions,
         progress: &mut dyn FnMut(u64, u64),
     ) -> Result<Gathered> {
         let start = Instant::now();
@@ -389,7 +389,7 @@ impl<'a> DirectPass<'a> {
         let occluder_buffer =
             self.occluders.record(gpu, &mut encoder, &self.scene_group, &point_buffer, point_count as u32);
         gpu.queue.submit([encoder.finish()]);
-        let budget = RayBudget::new(lights, rays);
+        let budget = RayBudget::new(lights, options.direct_rays);
         let clustered = light_clusters::clustered(lights.lights.len(), budget.rays);
         let mut batches = Batches {
             gpu,
@@ -417,7 +417,7 @@ impl<'a> DirectPass<'a> {
         };
         let wanted = budget.wanted(&lights.lights);
         let (ordered, starts) = light_clusters::order(&lights.lights, &wanted, clustered);
-        let batch = batch_size.clamp(1, MAX_BATCH) as usize;
+        let batch = options.batch_size.clamp(1, MAX_BATCH) as usize;
         let total = lights.lights.len() as u64;
         let mut count = 0;
         for (index, chunk) in ordered.chunks(batch).zip(starts.chunks(batch)).enumerate() {
@@ -486,7 +486,7 @@ pub fn run(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Direct> {
     let pass = DirectPass::new(gpu, scene)?;
-    let gathered = pass.gather(&texels.texels, lights, options.batch_size, options.direct_rays, progress)?;
+    let gathered = pass.gather(&texels.texels, lights, options, progress)?;
     Ok(gathered.into_direct(texels, lights))
 }
 

@@ -400,7 +400,7 @@ fn direct_light_with(
     let pass = environment.map(|_| direct::DirectPass::new(gpu, scene)).transpose()?;
     let gather = |points: &[Texel], lights: &LightSet, progress: &mut dyn FnMut(u64, u64)| {
         let pass = pass.as_ref().expect("a pass where there are lights");
-        pass.gather(points, lights, options.batch_size, options.direct_rays, progress)
+        pass.gather(points, lights, options, progress)
     };
     let mut direct = environment
         .map(|lights| Ok::<_, anyhow::Error>(gather(&texels.texels, lights, progress)?.into_direct(texels, lights)))
