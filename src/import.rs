@@ -19,7 +19,7 @@ use anyhow::{Context, Result, anyhow, bail, ensure};
 use glam::{DMat3, DMat4, DVec3};
 use gltf::mesh::Mode;
 
-use crate::asset::{SourceAsset, accessor, hierarchy, instancing, ktx2, morph};
+use crate::asset::{SourceAsset, accessor, hierarchy, instancing, ktx2, morph, quoted_name};
 use crate::scene::{
     AlphaMode, LightKind, LinearImage, Material, PunctualLight, Scene, ScenePrimitive, TextureRef, choose_origin,
 };
@@ -187,7 +187,7 @@ fn rest_pose_notices(
 ) -> Vec<String> {
     let mut notices = Vec::new();
     for node in moved {
-        let name = document.nodes().nth(node).and_then(|n| n.name()).map(|n| format!(" '{n}'")).unwrap_or_default();
+        let name = quoted_name(document.nodes().nth(node).and_then(|n| n.name()));
         let properties: Vec<&str> = animated[&node].iter().map(String::as_str).collect();
         notices.push(format!(
             "node {node}{name} is animated ({}): it and the nodes below it are baked in their rest pose, so their \
@@ -209,8 +209,7 @@ fn punctual_light(
     notices: &mut Vec<String>,
 ) -> Result<Option<PunctualLight>> {
     use gltf::khr_lights_punctual::Kind;
-    let name = light.name().map(|n| format!(" '{n}'")).unwrap_or_default();
-    let node_name = node.name().map(|n| format!(" '{n}'")).unwrap_or_default();
+    let (name, node_name) = (quoted_name(light.name()), quoted_name(node.name()));
     let what = format!("light {}{name} on node {}{node_name}", light.index(), node.index());
     let intensity = DVec3::from(light.color().map(f64::from)) * light.intensity() as f64;
     if !intensity.is_finite() || intensity.min_element() < 0.0 {
@@ -303,8 +302,7 @@ fn declared_instances(json: &serde_json::Value, node: usize) -> u64 {
 }
 
 fn describe(node: &gltf::Node, mesh: &gltf::Mesh, instance: Option<usize>) -> String {
-    let node_name = node.name().map(|n| format!(" '{n}'")).unwrap_or_default();
-    let mesh_name = mesh.name().map(|n| format!(" '{n}'")).unwrap_or_default();
+    let (node_name, mesh_name) = (quoted_name(node.name()), quoted_name(mesh.name()));
     let instance = instance.map(|k| format!(", instance {k}")).unwrap_or_default();
     format!("mesh {}{mesh_name} on node {}{node_name}{instance}", mesh.index(), node.index())
 }

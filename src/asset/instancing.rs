@@ -126,8 +126,7 @@ pub fn read(source: &SourceAsset, node: usize) -> Result<Option<Instances>> {
             .collect();
         Ok(Instances { placements, custom })
     };
-    let name = source.json.pointer(&format!("/nodes/{node}/name")).and_then(Value::as_str);
-    let name = name.map(|n| format!(" '{n}'")).unwrap_or_default();
+    let name = super::quoted_name(source.json.pointer(&format!("/nodes/{node}/name")).and_then(Value::as_str));
     read().map(Some).with_context(|| format!("node {node}{name}: {EXTENSION}"))
 }
 

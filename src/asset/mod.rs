@@ -358,6 +358,12 @@ fn split_glb(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>)> {
     }
 }
 
+/// A glTF object's name as messages put it after the object's index
+/// (" 'name'"), or nothing for an unnamed one.
+pub(crate) fn quoted_name(name: Option<&str>) -> String {
+    name.map(|n| format!(" '{n}'")).unwrap_or_default()
+}
+
 /// Decodes `%XX` escapes (URIs in glTF are percent-encoded).
 pub(crate) fn percent_decode(uri: &str) -> Result<String> {
     let bytes = uri.as_bytes();
