@@ -40,6 +40,9 @@ const LIFT: f64 = 1e-6;
 const SUB_SAMPLE_LIFT_TEXELS: f64 = 0.25;
 /// Surfaces whose front normals agree this well (cosine) face the same way.
 const SAME_WAY_COS: f64 = 0.5;
+/// Dark lights named one by one (`dark_light_notices`); a file of thousands
+/// gets one notice for the rest, and the bake no search for their reasons.
+const MAX_DARK_NOTICES: usize = 8;
 
 /// What the punctual pass did, for the report.
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
@@ -145,19 +148,22 @@ impl<'a> Punctual<'a> {
 }
 
 /// One notice for each light in `dark` (indices into `lights`) that lit
-/// none of the points `texels`: a user whose lamp vanished from the bake is
-/// told which and, where it is its range, why.
+/// none of the points `texels`, the first `MAX_DARK_NOTICES` of them, then
+/// one for the rest: a user whose lamp vanished from the bake is told which
+/// and, where it is its range, why.
 pub fn dark_light_notices(lights: &[PunctualLight], dark: &[usize], texels: &[Texel]) -> Vec<String> {
     let nearest = |p: DVec3| texels.iter().map(|t| t.position().as_dvec3().distance(p)).fold(f64::INFINITY, f64::min);
-    dark.iter()
+    let mut notices: Vec<String> = dark
+        .iter()
+        .take(MAX_DARK_NOTICES)
         .map(|&k| {
             let light = &lights[k];
             let what = format!("{} lights no texel", light.label);
-            let distance = nearest(light.position);
-            match light.range {
-                Some(range) if light.kind != LightKind::Directional && range <= distance => format!(
+            let reach = light.range.filter(|_| light.kind != LightKind::Directional);
+            match reach.map(|range| (range, nearest(light.position))) {
+                Some((range, distance)) if range <= distance => format!(
                     "{what}: its range ({} m) ends before the nearest surface, {} m away",
-                    figure(range),
+                    as_written(range),
                     if distance >= 1e-3 { format!("{distance:.3}") } else { figure(distance) }
                 ),
                 _ => format!(
@@ -165,5 +171,15 @@ pub fn dark_light_notices(lights: &[PunctualLight], dark: &[usize], texels: &[Te
                 ),
             }
         })
-        .collect()
+        .collect();
+    if dark.len() > MAX_DARK_NOTICES {
+        notices.push(format!("{} more punctual lights light no texel", dark.len() - MAX_DARK_NOTICES));
+    }
+    notices
+}
+
+/// A distance the file gave as an f32, as it was written (0.1, not
+/// 0.10000000149011612).
+fn as_written(value: f64) -> String {
+    if (1e-3..1e6).contains(&value) { (value as f32).to_string() } else { figure(value) }
 }

@@ -383,3 +383,18 @@ fn a_light_that_lights_no_texel_is_named_with_the_reason() {
     assert!(dark[1].starts_with("light 1 'upward' on node 2 'sky' lights no texel: every surface"));
     assert!(ground_texels(&baked).iter().any(|&(_, v)| v > 0.0), "the third lamp lights the ground");
 }
+
+#[test]
+fn many_dark_lights_are_named_up_to_eight_and_counted_beyond() {
+    let short = |k: usize| json!({ "type": "point", "intensity": 1.0, "range": 0.1, "name": format!("spark {k}") });
+    let mut scene = ground_under(short(0), Placement::at(Vec3::Y));
+    for k in 1..11 {
+        scene.light("spark", short(k), Placement::at(Vec3::new(k as f32 * 0.1, 1.0, 0.0)));
+    }
+    let baked = bake_lit_by_lamps(&scene, 16);
+    let dark: Vec<&String> = baked.notices.iter().filter(|n| n.contains("no texel")).collect();
+    eprintln!("{dark:#?}");
+    assert_eq!(dark.len(), 9, "{dark:#?}");
+    assert!(dark[7].starts_with("light 7 'spark 7' on node 8 'spark' lights no texel: its range (0.1 m)"));
+    assert_eq!(dark[8], "3 more punctual lights light no texel");
+}
