@@ -52,7 +52,7 @@ pub fn light_in_range(value: f64) -> bool {
 /// `value` for a message: plain between 10⁻³ and 10⁶, else in scientific
 /// notation to four digits, trailing zeros dropped (`1.5e38`, `1e300`).
 pub fn figure(value: f64) -> String {
-    if value == 0.0 || (1e-3..1e6).contains(&value.abs()) {
+    if reads_plainly(value) {
         return format!("{value}");
     }
     let text = format!("{value:.3e}");
@@ -62,6 +62,16 @@ pub fn figure(value: f64) -> String {
         }
         _ => text,
     }
+}
+
+/// [`figure`] for a value a file gave as an f32: plain as it was written
+/// (0.1, not the 0.10000000149011612 it widens to).
+pub fn figure_f32(value: f32) -> String {
+    if reads_plainly(value.into()) { value.to_string() } else { figure(value.into()) }
+}
+
+fn reads_plainly(value: f64) -> bool {
+    value == 0.0 || (1e-3..1e6).contains(&value.abs())
 }
 
 #[cfg(test)]
@@ -78,5 +88,7 @@ mod tests {
         assert_eq!(figure(-5e30), "-5e30");
         assert_eq!(figure(2.5e-7), "2.5e-7");
         assert_eq!(figure(f64::NAN), "NaN");
+        assert_eq!(figure_f32(0.1), "0.1");
+        assert_eq!(figure_f32(1e-30), "1e-30");
     }
 }

@@ -20,7 +20,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::contact::skim_above;
-use crate::limits::figure;
+use crate::limits::{figure, figure_f32};
 use crate::scene::{LightKind, PunctualLight, Scene};
 use crate::texelize::Texel;
 use crate::trace::Surfaces;
@@ -163,7 +163,7 @@ pub fn dark_light_notices(lights: &[PunctualLight], dark: &[usize], texels: &[Te
             match reach.map(|range| (range, nearest(light.position))) {
                 Some((range, distance)) if range <= distance => format!(
                     "{what}: its range ({} m) ends before the nearest surface, {} m away",
-                    as_written(range),
+                    figure_f32(range as f32),
                     if distance >= 1e-3 { format!("{distance:.3}") } else { figure(distance) }
                 ),
                 _ => format!(
@@ -176,10 +176,4 @@ pub fn dark_light_notices(lights: &[PunctualLight], dark: &[usize], texels: &[Te
         notices.push(format!("{} more punctual lights light no texel", dark.len() - MAX_DARK_NOTICES));
     }
     notices
-}
-
-/// A distance the file gave as an f32, as it was written (0.1, not
-/// 0.10000000149011612).
-fn as_written(value: f64) -> String {
-    if (1e-3..1e6).contains(&value) { (value as f32).to_string() } else { figure(value) }
 }

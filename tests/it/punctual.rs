@@ -393,7 +393,6 @@ fn many_dark_lights_are_named_up_to_eight_and_counted_beyond() {
     }
     let baked = bake_lit_by_lamps(&scene, 16);
     let dark: Vec<&String> = baked.notices.iter().filter(|n| n.contains("no texel")).collect();
-    eprintln!("{dark:#?}");
     assert_eq!(dark.len(), 9, "{dark:#?}");
     assert!(dark[7].starts_with("light 7 'spark 7' on node 8 'spark' lights no texel: its range (0.1 m)"));
     assert_eq!(dark[8], "3 more punctual lights light no texel");
