@@ -222,10 +222,10 @@ fn punctual_light(
             limits::MAX_LIGHT
         );
     }
-    let range = light.range().map(f64::from);
-    if let Some(range) = range.filter(|r| !(r.is_finite() && *r > 0.0)) {
-        bail!("{what}: range {range} is not a positive distance");
+    if let Some(range) = light.range().filter(|r| !(r.is_finite() && *r > 0.0)) {
+        bail!("{what}: range {} is not a positive distance", limits::figure_f32(range));
     }
+    let range = light.range().map(f64::from);
     let kind = match light.kind() {
         Kind::Directional => LightKind::Directional,
         Kind::Point => LightKind::Point,
@@ -253,7 +253,6 @@ fn punctual_light(
     Ok(Some(PunctualLight {
         node: node.index(),
         light: light.index(),
-        name: light.name().map(str::to_string),
         label: what,
         kind,
         position,

@@ -202,7 +202,6 @@ pub struct PunctualLight {
     /// The node that places it, and its index in the extension's list.
     pub node: usize,
     pub light: usize,
-    pub name: Option<String>,
     /// How notices name it: its index and name and its node's
     /// ("light 1 'bulb' on node 2 'hall'").
     pub label: String,

@@ -742,6 +742,8 @@ fn punctual_lights_that_cannot_be_are_refused_naming_the_light() {
         ),
         (json!({ "type": "point", "intensity": -3.0 }), "light 0 on node 1 'lamp': colour × intensity"),
         (json!({ "type": "point", "range": 0.0 }), "light 0 on node 1 'lamp': range 0 is not a positive distance"),
+        // As the file wrote it, not widened from its f32 (-0.10000000149011612).
+        (json!({ "type": "point", "range": -0.1 }), "light 0 on node 1 'lamp': range -0.1 is not a positive distance"),
     ] {
         let mut scene = SceneBuilder::new();
         scene.object("ground", &MeshData::plane(2.0, 2.0, 1), [0.5; 4], [0.0; 3], Placement::default());
