@@ -275,7 +275,7 @@ fn near_light(texel: Texel, s: Shooter, k: u32, skip: u32) -> vec3f {
         if (c != skip) {
             let cell = shooter_cells.items[base + c];
             let fc = sub_cell_form_factor(texel, s, k, c);
-            light += fc * (cell.rgb / max(cell.w, 1e-30));
+            light += (fc / max(cell.w, 1e-30)) * cell.rgb;
             f += fc;
         }
     }
@@ -392,12 +392,14 @@ fn near_radiance(texel: Texel, s: Shooter, k: u32) -> vec3f {
         let cell = shooter_cells.items[base + c];
         let d = shooter_cells.items[base + SUB_CELL_COUNT + c].xyz - texel.position;
         let r2 = dot(d, d);
-        // cos θ_i cos θ_j · A / (π r² + A), the cosines' 1/r² folded in.
+        // cos θ_i cos θ_j · A / (π r² + A), the cosines' 1/r² folded in,
+        // per unit of the sub-cell's area A (its power is A times its
+        // radiance): one division a sub-cell.
         let cosines = max(dot(texel.normal, d), 0.0) * max(-dot(s.normal, d), 0.0);
-        let w = cosines * cell.w / max(r2 * (PI * r2 + cell.w), 1e-30);
+        let w = cosines / max(r2 * (PI * r2 + cell.w), 1e-30);
         if (cell.w > 0.0 && r2 > 0.0) {
-            sum += w * cell.rgb / cell.w;
-            weight += w;
+            sum += w * cell.rgb;
+            weight += w * cell.w;
         }
     }
     return select(s.radiance, sum / weight, weight > 0.0);

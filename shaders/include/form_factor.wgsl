@@ -1,19 +1,20 @@
 // Form factors to a parallelogram or square by Lambert's contour integral. Needs texel.wgsl.
 
 // One edge's term of Lambert's contour integral, for corner vectors a, b
-// seen from the receiver.
+// seen from the receiver: the angle between them times the cosine of the
+// normal with their plane's. Both are the same for a, b at any length, so
+// neither is normalized (divisions are a third of the near field's time on
+// a CPU driver); the corners are of order 1 (`parallelogram_form_factor`),
+// so the squares below stay in range.
 fn edge_term(a: vec3f, b: vec3f, n: vec3f) -> f32 {
-    if (dot(a, a) <= 0.0 || dot(b, b) <= 0.0) {
+    let c = cross(a, b);
+    let c2 = dot(c, c);
+    // sin θ ≤ 1e-9, or a corner at the receiver: no term.
+    if (!(c2 > 1e-18 * dot(a, a) * dot(b, b))) {
         return 0.0;
     }
-    let ua = normalize(a);
-    let ub = normalize(b);
-    let c = cross(ua, ub);
-    let length_c = length(c);
-    if (length_c <= 1e-9) {
-        return 0.0;
-    }
-    return atan2(length_c, dot(ua, ub)) * dot(n, c) / length_c;
+    let length_c = sqrt(c2);
+    return atan2(length_c, dot(a, b)) * dot(n, c) / length_c;
 }
 
 // Edge a→b of the polygon clipped to the receiver's upper hemisphere
@@ -40,8 +41,17 @@ fn clipped_edge(a: vec3f, b: vec3f, n: vec3f, exit: ptr<function, vec3f>, entry:
 // parallelogram centre ± u ± v (Lambert's contour integral; Baum, Rushmeier
 // & Winget 1989), clipped to the point's upper hemisphere. Exact and bounded
 // at any distance, including a receiver touching the shooter.
-fn parallelogram_form_factor(p: vec3f, n: vec3f, centre: vec3f, u: vec3f, v: vec3f) -> f32 {
-    let c = centre - p;
+fn parallelogram_form_factor(p: vec3f, n: vec3f, centre: vec3f, u_world: vec3f, v_world: vec3f) -> f32 {
+    // Scaled to corners of order 1 (the form factor is scale-free), so that
+    // `edge_term` needs no normalization at any scene scale.
+    let extent = dot(centre - p, centre - p) + dot(u_world, u_world) + dot(v_world, v_world);
+    if (!(extent > 0.0)) {
+        return 0.0;
+    }
+    let scale = inverseSqrt(extent);
+    let c = (centre - p) * scale;
+    let u = u_world * scale;
+    let v = v_world * scale;
     let c0 = c - u - v;
     let c1 = c + u - v;
     let c2 = c + u + v;
