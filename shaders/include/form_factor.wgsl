@@ -3,9 +3,9 @@
 // One edge's term of Lambert's contour integral, for corner vectors a, b
 // seen from the receiver: the angle between them times the cosine of the
 // normal with their plane's. Both are the same for a, b at any length, so
-// neither is normalized (divisions are a third of the near field's time on
-// a CPU driver); the corners are of order 1 (`parallelogram_form_factor`),
-// so the squares below stay in range.
+// neither is normalized: a CPU driver's near field waits mostly on its
+// divisions (BENCHMARKS.md, stop 83). The corners are of order 1
+// (`parallelogram_form_factor`), so the squares below stay in range.
 fn edge_term(a: vec3f, b: vec3f, n: vec3f) -> f32 {
     let c = cross(a, b);
     let c2 = dot(c, c);
