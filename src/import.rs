@@ -222,10 +222,11 @@ fn punctual_light(
             limits::MAX_LIGHT
         );
     }
-    if let Some(range) = light.range().filter(|r| !(r.is_finite() && *r > 0.0)) {
+    let range = light.range();
+    if let Some(range) = range.filter(|r| !(r.is_finite() && *r > 0.0)) {
         bail!("{what}: range {} is not a positive distance", limits::figure_f32(range));
     }
-    let range = light.range().map(f64::from);
+    let range = range.map(f64::from);
     let kind = match light.kind() {
         Kind::Directional => LightKind::Directional,
         Kind::Point => LightKind::Point,
