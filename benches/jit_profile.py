@@ -86,9 +86,9 @@ def stretches(instructions, samples):
     return result
 
 
-def report(instructions, samples, top):
+def report(regions, instructions, samples, top):
     total = sum(samples.values())
-    in_jit = sum(c for ip, c in samples.items() if instructions and instructions[0][0] <= ip <= instructions[-1][0])
+    in_jit = sum(c for ip, c in samples.items() if any(start <= ip < end for start, end in regions))
     print(f"{total} samples, {100 * in_jit / max(total, 1):.1f} % in JIT code\n")
     print("| stretch | bytes | share | hottest instructions (share of the stretch's samples after each) |")
     print("|---|---|---|---|")
@@ -115,8 +115,9 @@ def main():
             sys.exit(f"the command ended within --wait {args.wait} s; give it more work or a shorter wait")
         with tempfile.TemporaryDirectory() as folder:
             samples = sample(process.pid, args.seconds, f"{folder}/perf.data")
-            instructions = disassemble(process.pid, anonymous_code(process.pid), folder)
-        report(instructions, samples, args.top)
+            regions = anonymous_code(process.pid)
+            instructions = disassemble(process.pid, regions, folder)
+        report(regions, instructions, samples, args.top)
     finally:
         os.killpg(process.pid, signal.SIGKILL)
         process.wait()
