@@ -441,6 +441,8 @@ fn run_inputs(config: &Config, gpu: &Gpu, progress: &mut dyn Progress, warm: imp
     let start = Instant::now();
     check_adapter_limits(gpu, &config.bake)?;
     let mut staging = output::Staging::new(&config.output, &config.inputs)?;
+    // An environment map lying in the output folder under an output's name is an input too.
+    staging.protect(config.environment.iter().cloned());
     let mut inputs = Vec::new();
     for input in &config.inputs {
         inputs.push(InputFile::hash("scene", input)?);

@@ -113,7 +113,8 @@ impl Staging {
         Ok(Staging { dir, output: output.to_path_buf(), protected, committed: false })
     }
 
-    /// Adds files an input consists of (its external buffers and images):
+    /// Adds files an input consists of (its external buffers and images, the
+    /// environment map):
     /// `commit` refuses to replace any of them.
     pub fn protect(&mut self, files: impl IntoIterator<Item = PathBuf>) {
         self.protected.extend(files.into_iter().filter_map(|p| p.canonicalize().ok()));
@@ -130,10 +131,12 @@ impl Staging {
     }
 
     /// Moves every staged file into the output folder (replacing older ones),
-    /// after checking that none would replace an input file.
+    /// after checking that none would replace an input file or a folder. A
+    /// failure part way puts back the files already replaced.
     pub fn commit(mut self) -> Result<()> {
         // A signal now waits for the files to be moved.
         let _moving = active();
+        let created = !self.output.exists();
         std::fs::create_dir_all(&self.output)
             .with_context(|| format!("cannot create output folder '{}'", self.output.display()))?;
         let mut entries: Vec<PathBuf> =
@@ -146,20 +149,90 @@ impl Staging {
             {
                 bail!("the output '{}' would replace a file of an input; choose another -o folder", target.display());
             }
-        }
-        for staged in entries {
-            let target = self.final_path(&staged);
-            if std::fs::rename(&staged, &target).is_err() {
-                // A different filesystem: copy beside the target, then rename there.
-                let partial = target.with_extension("partial");
-                std::fs::copy(&staged, &partial).with_context(|| format!("writing '{}'", partial.display()))?;
-                std::fs::rename(&partial, &target).with_context(|| format!("writing '{}'", target.display()))?;
+            if is_folder(&target) {
+                bail!("the output '{}' is a folder; move it or choose another -o folder", target.display());
             }
+        }
+        if let Err(e) = place_all(&entries, &self.output, &self.dir.join(REPLACED)) {
+            if created {
+                let _ = std::fs::remove_dir(&self.output);
+            }
+            return Err(e);
         }
         self.committed = true;
         let _ = std::fs::remove_dir_all(&self.dir);
         Ok(())
     }
+}
+
+/// Where `commit` keeps the files it replaces until every file is in place.
+const REPLACED: &str = ".replaced";
+
+fn is_folder(path: &Path) -> bool {
+    path.symlink_metadata().is_ok_and(|m| m.is_dir())
+}
+
+/// Moves each of `staged` into `output`, first moving the file it replaces
+/// (if any) into `replaced`. On a failure every file is put back as it was.
+fn place_all(staged: &[PathBuf], output: &Path, replaced: &Path) -> Result<()> {
+    // (target, where the file it replaced waits)
+    let mut placed: Vec<(PathBuf, Option<PathBuf>)> = Vec::new();
+    for file in staged {
+        let name = file.file_name().unwrap_or_default();
+        let target = output.join(name);
+        match place(file, &target, &replaced.join(name)) {
+            Ok(old) => placed.push((target, old)),
+            Err(e) => {
+                for (target, old) in placed.iter().rev() {
+                    let _ = std::fs::remove_file(target);
+                    if let Some(old) = old {
+                        let _ = std::fs::rename(old, target);
+                    }
+                }
+                return Err(e);
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Moves `staged` to `target`, the file there (never a folder) first to
+/// `aside`, which it returns; on a failure the old file is back in place.
+fn place(staged: &Path, target: &Path, aside: &Path) -> Result<Option<PathBuf>> {
+    let old = match target.symlink_metadata() {
+        Err(_) => None,
+        Ok(m) if m.is_dir() => {
+            bail!("the output '{}' is a folder; move it or choose another -o folder", target.display())
+        }
+        Ok(_) => {
+            std::fs::create_dir_all(aside.parent().unwrap_or(aside))
+                .and_then(|_| std::fs::rename(target, aside))
+                .with_context(|| format!("replacing '{}'", target.display()))?;
+            Some(aside.to_path_buf())
+        }
+    };
+    if let Err(e) = move_file(staged, target) {
+        if let Some(old) = &old {
+            let _ = std::fs::rename(old, target);
+        }
+        return Err(e);
+    }
+    Ok(old)
+}
+
+fn move_file(staged: &Path, target: &Path) -> Result<()> {
+    if std::fs::rename(staged, target).is_ok() {
+        return Ok(());
+    }
+    // A different filesystem: copy beside the target, then rename there.
+    let mut partial = target.as_os_str().to_owned();
+    partial.push(".partial");
+    let partial = PathBuf::from(partial);
+    let moved = std::fs::copy(staged, &partial).and_then(|_| std::fs::rename(&partial, target));
+    if moved.is_err() {
+        let _ = std::fs::remove_file(&partial);
+    }
+    moved.with_context(|| format!("writing '{}'", target.display()))
 }
 
 impl Drop for Staging {
@@ -175,5 +248,43 @@ fn same_file(a: &Path, b: &Path) -> bool {
     match (a.canonicalize(), b.canonicalize()) {
         (Ok(a), Ok(b)) => a == b,
         _ => false,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_failed_placement_puts_back_the_files_it_replaced() {
+        let dir = tempfile::tempdir().unwrap();
+        let (staging, output) = (dir.path().join("staging"), dir.path().join("out"));
+        std::fs::create_dir_all(&staging).unwrap();
+        std::fs::create_dir_all(output.join("b.bin")).unwrap();
+        for (name, bytes) in [("a.bin", "new a"), ("b.bin", "new b"), ("c.bin", "new c")] {
+            std::fs::write(staging.join(name), bytes).unwrap();
+        }
+        std::fs::write(output.join("a.bin"), "old a").unwrap();
+        let staged: Vec<PathBuf> = ["a.bin", "b.bin", "c.bin"].iter().map(|n| staging.join(n)).collect();
+        let error = place_all(&staged, &output, &staging.join(REPLACED)).unwrap_err();
+        assert!(format!("{error}").contains("is a folder"), "{error}");
+        assert_eq!(std::fs::read_to_string(output.join("a.bin")).unwrap(), "old a");
+        assert!(output.join("b.bin").is_dir());
+        let mut left: Vec<_> = std::fs::read_dir(&output).unwrap().map(|e| e.unwrap().file_name()).collect();
+        left.sort();
+        assert_eq!(left, ["a.bin", "b.bin"]);
+    }
+
+    #[test]
+    fn a_placement_replaces_older_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let (staging, output) = (dir.path().join("staging"), dir.path().join("out"));
+        std::fs::create_dir_all(&staging).unwrap();
+        std::fs::create_dir_all(&output).unwrap();
+        std::fs::write(staging.join("a.bin"), "new a").unwrap();
+        std::fs::write(output.join("a.bin"), "old a").unwrap();
+        place_all(&[staging.join("a.bin")], &output, &staging.join(REPLACED)).unwrap();
+        assert_eq!(std::fs::read_to_string(output.join("a.bin")).unwrap(), "new a");
+        assert_eq!(std::fs::read_to_string(staging.join(REPLACED).join("a.bin")).unwrap(), "old a");
     }
 }

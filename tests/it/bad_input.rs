@@ -564,6 +564,53 @@ fn a_bad_second_input_leaves_none_of_the_first_ones_outputs() {
     assert_eq!(left, ["keep.txt"], "the failed run left files in the output folder");
 }
 
+/// Every entry of `folder` with its bytes (a folder's as empty), in name order.
+fn snapshot(folder: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut entries: Vec<(String, Vec<u8>)> = std::fs::read_dir(folder)
+        .unwrap()
+        .map(|e| {
+            let path = e.unwrap().path();
+            let bytes = if path.is_dir() { Vec::new() } else { std::fs::read(&path).unwrap() };
+            (path.file_name().unwrap().to_string_lossy().into_owned(), bytes)
+        })
+        .collect();
+    entries.sort();
+    entries
+}
+
+#[test]
+fn an_environment_map_named_as_an_output_is_never_replaced() {
+    let case = Case::new();
+    std::fs::create_dir(case.path("out")).unwrap();
+    std::fs::copy(fixture("sphere.glb"), case.path("good.glb")).unwrap();
+    std::fs::copy(fixture("sky_constant.exr"), case.path("out/good.lightmap0.exr")).unwrap();
+    let before = snapshot(&case.path("out"));
+    let output = case.run(&["good.glb", "--env", "out/good.lightmap0.exr"]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(2), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.contains("out/good.lightmap0.exr") && stderr.contains("would replace a file of an input"),
+        "{stderr}"
+    );
+    assert_eq!(snapshot(&case.path("out")), before, "the output folder changed");
+}
+
+#[test]
+fn a_folder_where_an_output_goes_leaves_the_output_folder_as_it_was() {
+    let case = Case::new();
+    std::fs::create_dir_all(case.path("out/good.lightmap0.exr")).unwrap();
+    std::fs::write(case.path("out/report.json"), "{\"previous\": true}").unwrap();
+    std::fs::copy(fixture("sphere.glb"), case.path("good.glb")).unwrap();
+    let before = snapshot(&case.path("out"));
+    let output = case.bake("good.glb");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(2), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("out/good.lightmap0.exr") && stderr.contains("is a folder"), "{stderr}");
+    assert_eq!(snapshot(&case.path("out")), before, "the output folder changed");
+}
+
 // ---------------------------------------------------------------------------------------------
 // Environments
 
