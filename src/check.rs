@@ -635,8 +635,9 @@ fn probe_violations(dir: &Path, scene: &SceneReport, probes: usize) -> Result<Ve
         Err(e) => return Ok(say(format!("probes '{}': {e}", path.display()))),
     };
     const FACE_VALUES: usize = 18;
-    let expected = (probes * FACE_VALUES * 4) as u64;
-    if length != expected {
+    // In u128: a report's count times 72 must not wrap to the file's length.
+    let expected = probes as u128 * (FACE_VALUES * 4) as u128;
+    if u128::from(length) != expected {
         return Ok(say(format!("probes '{}' are {length} bytes, not {expected} for {probes} probes", path.display())));
     }
     let mut bytes = Vec::with_capacity(length as usize);

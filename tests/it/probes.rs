@@ -171,6 +171,15 @@ fn the_cli_writes_the_probe_files_and_check_guards_their_values() {
         assert_eq!(result.status.code(), Some(1), "{what}: {}", String::from_utf8_lossy(&result.stdout));
         assert!(String::from_utf8_lossy(&result.stdout).contains("probes"), "{what}");
     }
+    // A count whose bytes a 64-bit product would wrap to the file's length (2^62 · 72 to 0).
+    let report_path = out.join("report.json");
+    let original = std::fs::read(&report_path).unwrap();
+    let mut report: serde_json::Value = serde_json::from_slice(&original).unwrap();
+    report["scenes"][0]["probes"]["probes"] = json!(1u64 << 62);
+    std::fs::write(&report_path, serde_json::to_vec(&report).unwrap()).unwrap();
+    std::fs::write(&bin, b"").unwrap();
+    assert_eq!(check(&out).status.code(), Some(1), "2^62 probes in an empty file");
+    std::fs::write(&report_path, original).unwrap();
     std::fs::remove_file(&bin).unwrap();
     assert_eq!(check(&out).status.code(), Some(1), "a missing probe file");
 }
