@@ -179,11 +179,14 @@ fn exr_ratio(compression: exr::compression::Compression) -> u64 {
     match compression {
         Compression::Uncompressed => 1,
         Compression::RLE => 64,
-        _ => 1032,
+        _ => DEFLATE_RATIO,
     }
 }
 
-/// Refuses an EXR whose parts declare more texels than the file can hold.
+/// Deflate's densest coding: decoded bytes per byte.
+const DEFLATE_RATIO: u64 = 1032;
+
+/// Refuses an EXR whose parts or display window declare more texels than the file can hold.
 pub(crate) fn check_exr_size(file: &File, length: u64) -> Result<(), String> {
     let meta = exr::meta::MetaData::read_from_buffered(BufReader::new(file), false)
         .map_err(|e| format!("cannot decode OpenEXR: {e}"))?;
@@ -191,6 +194,12 @@ pub(crate) fn check_exr_size(file: &File, length: u64) -> Result<(), String> {
         let (size, bytes) = (header.layer_size, header.channels.bytes_per_pixel as u64);
         let ratio = exr_ratio(header.compression);
         crate::files::check_declared(size.width() as u64, size.height() as u64, bytes, length, ratio)?;
+        // The data is placed in the display window, black around it
+        // (`place_in_display_window`): RGB f32 texels, held to the densest
+        // coding, so that a header alone cannot ask for gigabytes.
+        let display = header.shared_attributes.display_window.size;
+        crate::files::check_declared(display.width() as u64, display.height() as u64, 12, length, DEFLATE_RATIO)
+            .map_err(|e| format!("display window: {e}"))?;
     }
     Ok(())
 }

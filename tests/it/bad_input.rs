@@ -812,14 +812,16 @@ fn patch_exr_attribute(bytes: &mut [u8], name: &str, kind: &str, value: &[u8]) {
     bytes[at..at + value.len()].copy_from_slice(value);
 }
 
-/// An EXR whose header declares a `width`×`height` image over the pixels of a 2×1 one.
-fn exr_declaring(case: &Case, width: i32, height: i32) -> Vec<u8> {
+/// An EXR whose header declares a `width`×`height` image over the pixels of a 2×1 one, in
+/// each of `windows` (its data or display window).
+fn exr_declaring(case: &Case, width: i32, height: i32, windows: &[&str]) -> Vec<u8> {
     write_exr(case, "small.exr", &EnvironmentMap::from_fn(2, 1, |_| [1.0; 3]));
     let mut bytes = std::fs::read(case.path("small.exr")).unwrap();
     std::fs::remove_file(case.path("small.exr")).unwrap();
     let window: Vec<u8> = [0, 0, width - 1, height - 1].iter().flat_map(|v: &i32| v.to_le_bytes()).collect();
-    patch_exr_attribute(&mut bytes, "dataWindow", "box2i", &window);
-    patch_exr_attribute(&mut bytes, "displayWindow", "box2i", &window);
+    for name in windows {
+        patch_exr_attribute(&mut bytes, name, "box2i", &window);
+    }
     bytes
 }
 
@@ -831,9 +833,12 @@ fn image_headers_declaring_more_than_the_file_holds_are_refused_before_allocatin
         let header = format!("#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y {height} +X {width}\n");
         case.write("huge.hdr", &[header.as_bytes(), &[2, 2, 0, 8, 1, 1, 1, 1]].concat());
         case.refused(&["scene.glb", "--env", "huge.hdr"], "huge.hdr", "declares");
-        let exr = exr_declaring(&case, width, height);
+        let exr = exr_declaring(&case, width, height, &["dataWindow", "displayWindow"]);
         case.write("huge.exr", &exr);
         case.refused(&["scene.glb", "--env", "huge.exr"], "huge.exr", "declares");
+        // The 2×1 texels would be placed in the display window, black around them.
+        case.write("display.exr", &exr_declaring(&case, width, height, &["displayWindow"]));
+        case.refused(&["scene.glb", "--env", "display.exr"], "display.exr", "display window: the header declares");
     }
     // `bake check` re-reads a lightmap EXR beside the report.
     let out = tempfile::tempdir().unwrap();
@@ -842,7 +847,7 @@ fn image_headers_declaring_more_than_the_file_holds_are_refused_before_allocatin
         out.path(),
         &["--max-atlas-size", "32", "--lights", "16"],
     );
-    let exr = exr_declaring(&case, 65536, 32768);
+    let exr = exr_declaring(&case, 65536, 32768, &["dataWindow", "displayWindow"]);
     std::fs::write(out.path().join("sphere_on_ground.lightmap0.exr"), exr).unwrap();
     let output = finish({
         let mut command = common::bake_command();
