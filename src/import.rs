@@ -64,12 +64,22 @@ pub fn from_asset_with(source: SourceAsset, options: &ImportOptions) -> Result<S
         .or_else(|| document.scenes().next())
         .ok_or_else(|| anyhow!("the file has no scene to bake"))?;
     hierarchy::check_trees(document, &gltf_scene)?;
-    let triangles = drawn_triangles(&source.json, &gltf_scene);
+    let [triangles, vertices] = drawn_counts(&source.json, &gltf_scene);
     if triangles > options.max_triangles {
         bail!(
             "the scene draws {triangles} triangles (node and GPU instances expanded), more than the budget of {} \
              (--max-triangles): raise --max-triangles to bake it",
             options.max_triangles
+        );
+    }
+    // Each drawing of a primitive reads its whole POSITION accessor, which
+    // its indices may use only a few of, or share with other primitives.
+    let max_vertices = options.max_triangles.saturating_mul(VERTICES_PER_TRIANGLE);
+    if vertices > max_vertices {
+        bail!(
+            "the scene's primitives read {vertices} vertices (node and GPU instances expanded), more than the \
+             budget of {max_vertices} ({VERTICES_PER_TRIANGLE} a triangle of --max-triangles): raise \
+             --max-triangles to bake it"
         );
     }
 
@@ -263,34 +273,43 @@ fn punctual_light(
     }))
 }
 
-/// The triangles `scene` draws once node and GPU instances are expanded,
-/// from the accessors' declared counts: known before anything is read, so
-/// a small file drawing one mesh from thousands of nodes is refused at once.
-fn drawn_triangles(json: &serde_json::Value, scene: &gltf::Scene) -> u64 {
-    let mut total = 0u64;
+/// The vertex budget per triangle of the triangle budget: a triangle list
+/// needs at most three.
+const VERTICES_PER_TRIANGLE: u64 = 3;
+
+/// The triangles `scene` draws and the vertices it reads once node and GPU
+/// instances are expanded, from the accessors' declared counts: known
+/// before anything is read, so a small file drawing one mesh from thousands
+/// of nodes is refused at once.
+fn drawn_counts(json: &serde_json::Value, scene: &gltf::Scene) -> [u64; 2] {
+    let mut total = [0u64; 2];
     // The nodes form trees (`hierarchy::check_trees`): each is visited once.
     let mut stack: Vec<gltf::Node> = scene.nodes().collect();
     while let Some(node) = stack.pop() {
         if let Some(mesh) = node.mesh().filter(|_| node.skin().is_none()) {
             let copies = declared_instances(json, node.index());
-            total = total.saturating_add(mesh_triangles(&mesh).saturating_mul(copies));
+            for (sum, count) in total.iter_mut().zip(mesh_counts(&mesh)) {
+                *sum = sum.saturating_add(count.saturating_mul(copies));
+            }
         }
         stack.extend(node.children());
     }
     total
 }
 
-/// The triangles one drawing of `mesh` holds, by the declared counts.
-fn mesh_triangles(mesh: &gltf::Mesh) -> u64 {
-    let primitive_triangles = |p: gltf::Primitive| {
-        let drawn = p.indices().or_else(|| p.get(&gltf::Semantic::Positions)).map_or(0, |a| a.count() as u64);
+/// The triangles one drawing of `mesh` holds and the vertices it reads, by
+/// the declared counts.
+fn mesh_counts(mesh: &gltf::Mesh) -> [u64; 2] {
+    let primitive_counts = |p: gltf::Primitive| {
+        let vertices = p.get(&gltf::Semantic::Positions).map_or(0, |a| a.count() as u64);
+        let drawn = p.indices().map_or(vertices, |a| a.count() as u64);
         match p.mode() {
-            Mode::Triangles => drawn / 3,
-            Mode::TriangleStrip | Mode::TriangleFan => drawn.saturating_sub(2),
-            _ => 0,
+            Mode::Triangles => [drawn / 3, vertices],
+            Mode::TriangleStrip | Mode::TriangleFan => [drawn.saturating_sub(2), vertices],
+            _ => [0, 0],
         }
     };
-    mesh.primitives().map(primitive_triangles).fold(0, u64::saturating_add)
+    mesh.primitives().map(primitive_counts).fold([0, 0], |a, b| [a[0].saturating_add(b[0]), a[1].saturating_add(b[1])])
 }
 
 /// How many GPU instances (EXT_mesh_gpu_instancing) node `node` declares; 1 without the extension.
@@ -841,10 +860,7 @@ fn decode_images(
             if !wanted {
                 return None;
             }
-            let decoded = source.image_bytes(i).and_then(|(bytes, _)| match ktx2::is_ktx2(&bytes) {
-                true => ktx2::decode(&bytes),
-                false => Ok(image::load_from_memory(&bytes).map_err(|e| anyhow!("{e}"))?.to_rgba8()),
-            });
+            let decoded = source.image_bytes(i).and_then(|(bytes, _)| decode_image(&bytes));
             match decoded {
                 Ok(image) => Some(Arc::new(linear_image(&image))),
                 Err(e) => {
@@ -857,6 +873,24 @@ fn decode_images(
         })
         .collect();
     (images, notices)
+}
+
+/// One material image as RGBA8, refused before decoding when its header
+/// declares more texels than [`limits::MAX_IMAGE_SQUARE`]².
+fn decode_image(bytes: &[u8]) -> Result<image::RgbaImage> {
+    let ktx2 = ktx2::is_ktx2(bytes);
+    let (width, height) = match ktx2 {
+        true => ktx2::dimensions(bytes)?,
+        false => image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format()?.into_dimensions()?,
+    };
+    let side = limits::MAX_IMAGE_SQUARE;
+    if u64::from(width) * u64::from(height) > side * side {
+        bail!("it is {width}×{height} texels, more than a {side}×{side} image, the most bake decodes");
+    }
+    match ktx2 {
+        true => ktx2::decode(bytes),
+        false => Ok(image::load_from_memory(bytes).map_err(|e| anyhow!("{e}"))?.to_rgba8()),
+    }
 }
 
 fn linear_image(rgba: &image::RgbaImage) -> LinearImage {

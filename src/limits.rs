@@ -44,6 +44,12 @@ pub const MAX_LIGHT: f64 = 1e12;
 /// and an unwrap of well under a minute and a GB on a 2-core build machine.
 pub const DEFAULT_MAX_TRIANGLES: u64 = 4_000_000;
 
+/// The side of the largest square material image bake decodes: an image
+/// with more texels is baked as absent, with a notice. An 8192² image's
+/// decoded copies (RGBA8, then linear f32) take 1.25 GiB, where a small file
+/// can declare far more (a 1-bit PNG of 16,000² texels is 31 KB).
+pub const MAX_IMAGE_SQUARE: u64 = 8192;
+
 /// Whether `value` is a usable light figure: finite, ≥ 0 and at most [`MAX_LIGHT`].
 pub fn light_in_range(value: f64) -> bool {
     (0.0..=MAX_LIGHT).contains(&value)

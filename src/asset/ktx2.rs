@@ -28,6 +28,13 @@ pub fn decode(bytes: &[u8]) -> Result<image::RgbaImage> {
         .unwrap_or_else(|_| bail!("the Basis Universal transcoder failed on it (a damaged file)"))
 }
 
+/// The size of the file's first image, from its checked header.
+pub fn dimensions(bytes: &[u8]) -> Result<(u32, u32)> {
+    check_header(bytes)?;
+    let field = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().expect("4 bytes"));
+    Ok((field(20), field(24)))
+}
+
 fn transcode(bytes: &[u8]) -> Result<image::RgbaImage> {
     let texture = Transcoder::new(bytes).map_err(|e| anyhow!("not a Basis Universal KTX2 file ({e:?})"))?;
     if texture.is_video() {

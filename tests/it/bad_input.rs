@@ -223,18 +223,19 @@ fn huge_declared_counts_are_refused_before_allocating() {
     // Each declaration would need tens of GiB if believed; the process would
     // die or swap instead of printing the line checked here.
     let case = Case::new();
+    // Within the triangle and vertex budgets, which count the declared
+    // indices and vertices before anything is read.
+    let env = fixture("sky_constant.hdr");
+    let within = |name| [name, "--env", env.to_str().unwrap(), "--max-triangles", "2000000000"];
     let (mut json, bin) = parts();
     json["accessors"][4]["count"] = json!(u32::MAX);
     case.write("count.glb", &glb(&json, &bin));
-    case.refused(&["count.glb"], "count.glb", "accessor 4: 4294967295 elements of 12 bytes");
+    case.refused(&within("count.glb"), "count.glb", "accessor 4: 4294967295 elements of 12 bytes");
     let (mut json, bin) = parts();
     json["accessors"][7]["count"] = json!(2_000_000_000u32);
     json["bufferViews"][7]["byteLength"] = json!(8_000_000_000u64);
     case.write("view.glb", &glb(&json, &bin));
-    // Within the triangle budget, which counts the declared indices before the view is read.
-    let env = fixture("sky_constant.hdr");
-    let within = ["view.glb", "--env", env.to_str().unwrap(), "--max-triangles", "1000000000"];
-    case.refused(&within, "view.glb", "bufferView 7 (8000000000 bytes at");
+    case.refused(&within("view.glb"), "view.glb", "bufferView 7 (8000000000 bytes at");
     let (mut json, bin) = parts();
     json["buffers"][0]["byteLength"] = json!(1u64 << 40);
     case.write("buffer.glb", &glb(&json, &bin));
@@ -250,7 +251,8 @@ fn huge_declared_counts_are_refused_before_allocating() {
         "values": { "bufferView": 0 },
     });
     case.write("viewless.glb", &glb(&json, &bin));
-    case.refused(&["viewless.glb"], "viewless.glb", "accessor 4: 1000000000 elements of 12 bytes with no bufferView");
+    let problem = "accessor 4: 1000000000 elements of 12 bytes with no bufferView";
+    case.refused(&within("viewless.glb"), "viewless.glb", problem);
 }
 
 /// The fixture as `NAME.gltf` with its buffer in the file `uri`.
@@ -484,6 +486,40 @@ fn required_extensions_bake_reads_are_accepted() {
         "missing.glb",
         "textures[0].extensions.EXT_texture_avif.source is 3, but there are 1 images",
     );
+}
+
+/// An 8×8 JPEG whose frame header (SOF0) says it is `width`×`height`.
+fn jpeg_declaring(width: u16, height: u16) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    let image = image::RgbImage::from_pixel(8, 8, image::Rgb([200, 100, 50]));
+    image::codecs::jpeg::JpegEncoder::new(&mut bytes).encode_image(&image).unwrap();
+    let sof = bytes.windows(2).position(|w| w == [0xFF, 0xC0]).expect("a baseline frame header");
+    // Marker, length (2), precision (1), then height and width, big-endian.
+    bytes[sof + 5..sof + 7].copy_from_slice(&height.to_be_bytes());
+    bytes[sof + 7..sof + 9].copy_from_slice(&width.to_be_bytes());
+    bytes
+}
+
+#[test]
+fn images_declaring_more_than_8192_squared_texels_are_baked_as_absent_before_decoding() {
+    use base64::Engine as _;
+    for (width, height, decoded) in [(9000, 9000, false), (65535, 1100, false), (64, 64, true)] {
+        let case = Case::new();
+        let (mut json, bin) = parts();
+        let data = base64::engine::general_purpose::STANDARD.encode(jpeg_declaring(width, height));
+        json["images"] = json!([{ "uri": format!("data:image/jpeg;base64,{data}") }]);
+        json["textures"] = json!([{ "source": 0 }]);
+        json["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] = json!({ "index": 0 });
+        case.write("large.glb", &glb(&json, &bin));
+        let output = case.bake("large.glb");
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        let notices = &report(&case).scenes[0].notices;
+        let refused =
+            format!("image 0 could not be decoded (it is {width}×{height} texels, more than a 8192×8192 image");
+        assert_eq!(notices.iter().any(|n| n.contains(&refused)), !decoded, "{notices:?}");
+        // The one that fits decodes or fails on its data, not on its size.
+        assert!(notices.iter().all(|n| !n.contains("the most bake decodes")) || !decoded, "{notices:?}");
+    }
 }
 
 #[test]
@@ -1232,6 +1268,45 @@ fn a_scene_over_the_triangle_budget_is_refused_before_it_is_read() {
     );
     let env = fixture("sky_constant.hdr");
     let output = case.run(&["scene.glb", "--env", env.to_str().unwrap(), "--max-triangles", "2240"]);
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+}
+
+#[test]
+fn primitives_reading_more_vertices_than_the_budget_are_refused_before_they_are_read() {
+    // 64 more primitives on the sphere, each drawing one triangle out of the
+    // sphere's whole POSITION accessor, as a 22 M-vertex accessor (a sparse
+    // one needs no data) drawn for a few triangles would.
+    let case = Case::new();
+    let mut expected = (0, 0);
+    edited(&case, "shared.glb", |json, _| {
+        let sphere = json["meshes"][1]["primitives"][0].clone();
+        let mut one = json["accessors"][sphere["indices"].as_u64().unwrap() as usize].clone();
+        one["count"] = json!(3);
+        one.as_object_mut().unwrap().remove("min");
+        one.as_object_mut().unwrap().remove("max");
+        let accessors = json["accessors"].as_array_mut().unwrap();
+        accessors.push(one);
+        let extra = json!({ "attributes": sphere["attributes"], "indices": accessors.len() - 1 });
+        json["meshes"][1]["primitives"].as_array_mut().unwrap().extend(std::iter::repeat_n(extra, 64));
+        let count = |a: &Value| json["accessors"][a.as_u64().unwrap() as usize]["count"].as_u64().unwrap();
+        for primitive in json["meshes"].as_array().unwrap().iter().flat_map(|m| m["primitives"].as_array().unwrap()) {
+            expected.0 += count(&primitive["indices"]) / 3;
+            expected.1 += count(&primitive["attributes"]["POSITION"]);
+        }
+    });
+    let (triangles, vertices) = expected;
+    assert_eq!(triangles, 2240 + 64);
+    let budget = triangles.to_string();
+    let problem = format!(
+        "the scene's primitives read {vertices} vertices (node and GPU instances expanded), more than the budget of {} (3 a triangle of --max-triangles)",
+        3 * triangles
+    );
+    case.refused(&["shared.glb", "--max-triangles", &budget], "shared.glb", &problem);
+    // Within the budget it bakes.
+    let env = fixture("sky_constant.hdr");
+    let enough = vertices.div_ceil(3).to_string();
+    let args = ["shared.glb", "--env", env.to_str().unwrap(), "--max-triangles", &enough, "--max-atlas-size", "128"];
+    let output = case.run(&args);
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
 }
 
