@@ -241,11 +241,18 @@ fn punctual_light(
         Kind::Directional => LightKind::Directional,
         Kind::Point => LightKind::Point,
         Kind::Spot { inner_cone_angle, outer_cone_angle } => {
-            let (inner, outer) = (inner_cone_angle as f64, outer_cone_angle as f64);
-            if !(0.0 <= inner && inner < outer && outer <= std::f64::consts::FRAC_PI_2) {
-                bail!("{what}: spot cone angles inner {inner} and outer {outer} are not 0 ≤ inner < outer ≤ π/2");
+            // Checked as the file's f32s: π/2 written as an f32 is a little
+            // over the f64 π/2, and is the spec's own bound.
+            let (inner, outer) = (inner_cone_angle, outer_cone_angle);
+            if !(0.0 <= inner && inner < outer && outer <= std::f32::consts::FRAC_PI_2) {
+                bail!(
+                    "{what}: spot cone angles inner {} and outer {} are not 0 ≤ inner < outer ≤ π/2",
+                    limits::figure_f32(inner),
+                    limits::figure_f32(outer)
+                );
             }
-            LightKind::Spot { inner_cone: inner, outer_cone: outer }
+            let outer = f64::from(outer).min(std::f64::consts::FRAC_PI_2);
+            LightKind::Spot { inner_cone: f64::from(inner), outer_cone: outer }
         }
     };
     // A light shines along its node's −Z, from its node's origin.

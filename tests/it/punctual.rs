@@ -115,6 +115,27 @@ fn a_spot_lights_its_cone_and_range_as_the_extension_defines_them() {
     assert!(worst < 1e-3, "a texel is {:.3} % off the cone's falloff and range window", worst * 100.0);
 }
 
+#[test]
+fn a_spot_whose_outer_cone_is_the_specs_bound_of_half_pi_lights_by_cos_squared() {
+    // JSON's π/2 read as an f32 is a little over the f64 π/2: the spec's bound
+    // itself, not past it. With inner 0 the cone's falloff is (cos θ)².
+    let intensity = 40.0;
+    let light = json!({
+        "type": "spot", "intensity": intensity,
+        "spot": { "innerConeAngle": 0.0, "outerConeAngle": std::f64::consts::FRAC_PI_2 },
+    });
+    let placement = Placement::at(Vec3::Y * 2.0).rotated(pointing_down());
+    let baked = bake_lit_by_lamps(&ground_under(light, placement), 64);
+    let mut worst = 0.0f64;
+    for (p, value) in ground_texels(&baked) {
+        let d = ((p.x * p.x + p.z * p.z) as f64).sqrt().hypot(2.0);
+        let cos = 2.0 / d;
+        let expected = intensity * cos.powi(3) / (d * d) / PI;
+        worst = worst.max((value / expected - 1.0).abs());
+    }
+    assert!(worst < 1e-3, "a texel is {:.3} % off I cos³θ / (π d²)", worst * 100.0);
+}
+
 /// Whether the segment from `p` along `d` meets the axis-aligned box `lo`..`hi`.
 fn ray_meets_box(p: DVec3, d: DVec3, lo: DVec3, hi: DVec3) -> bool {
     let (mut near, mut far) = (0.0f64, f64::INFINITY);
