@@ -180,7 +180,8 @@ pub struct BounceStats {
     /// had no direct pass, else from the direct pass's coverage).
     pub closure: f64,
     /// Power that landed on the scene over the power shot (luminance, summed
-    /// on the GPU over every batch; 1 when nothing was shot). Not capped: above
+    /// on the GPU over every batch; when nothing was shot, `closure` if the
+    /// pass converged, else 1). Not capped: above
     /// 1 the form factors gave out more than was shot.
     pub shot_closure: f64,
     /// Mean ambient term added for the light not yet shot, L_lm RGB: spread
@@ -303,8 +304,11 @@ pub fn run(
     // scene-covered share of each texel's hemisphere (from the direct pass),
     // weighted by its unshot power; without a direct pass, the measured one.
     let converged = stopped_by == StopReason::Converged;
+    // Converged before any shot, the scene catches next to none of the light
+    // (a lone quad under a point light): its coverage says how little.
+    let shot_nothing = tally.shot_total <= 0.0;
     let closure = match coverage {
-        Some(coverage) if !converged => covered_share(texels, &remaining, coverage),
+        Some(coverage) if !converged || shot_nothing => covered_share(texels, &remaining, coverage),
         _ => measured_closure(tally.received_total, tally.shot_total),
     };
     let ambient = ambient_term(last.unshot, closure, sums.mean_albedo, sums.total_area).map(|a| a as f32);
@@ -324,7 +328,11 @@ pub fn run(
         stopped_by,
         unshot_fraction,
         closure,
-        shot_closure: if tally.shot_total > 0.0 { tally.received_total / tally.shot_total } else { 1.0 },
+        shot_closure: match (shot_nothing, converged) {
+            (false, _) => tally.received_total / tally.shot_total,
+            (true, true) => closure,
+            (true, false) => 1.0,
+        },
         ambient,
         normalized,
         trace: tally.trace,

@@ -269,6 +269,30 @@ fn an_emitter_lit_room_keeps_its_energy_balance() {
 }
 
 #[test]
+fn a_lone_quad_under_a_point_light_bounces_nothing_and_passes() {
+    // Nothing sees anything: the bounce pass converges before its first
+    // shot, and its closure is the scene's coverage (0), not a closed room's 1.
+    use bake::fixtures::{MeshData, Placement, SceneBuilder};
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene = SceneBuilder::new();
+    scene.object("quad", &MeshData::plane(2.0, 2.0, 1), [0.8, 0.8, 0.8, 1.0], [0.0; 3], Placement::default());
+    scene.light("lamp", serde_json::json!({ "type": "point", "intensity": 20.0 }), Placement::at(glam::Vec3::Y));
+    std::fs::write(dir.path().join("quad.glb"), scene.to_glb()).unwrap();
+    let env = fixture("sky_constant.hdr");
+    let args =
+        ["quad.glb", "--env", env.to_str().unwrap(), "-o", "out", "--max-atlas-size", "32", "--lights", "16", "-q"];
+    let output = run(dir.path(), &args);
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let (code, text) = check(dir.path(), &["out/report.json"]);
+    assert_eq!(code, Some(0), "{text}");
+    let typed: bake::report::Report =
+        serde_json::from_slice(&std::fs::read(dir.path().join("out/report.json")).unwrap()).unwrap();
+    let bounce = typed.scenes[0].bounce.as_ref().expect("a point light's light may bounce: the pass runs");
+    assert_eq!(bounce.shots, 0);
+    assert!(bounce.closure < 1e-3 && bounce.shot_closure < 1e-3, "{} {}", bounce.closure, bounce.shot_closure);
+}
+
+#[test]
 fn every_fixture_keeps_the_invariants_as_the_ci_example_bakes_it() {
     // pipeline/ci-example.yml's options, the contact fix-up on: the crates
     // and the ball of `everything` and `corner` touch the ground, where the
