@@ -322,7 +322,9 @@ pub struct EnergyStats {
     pub p50_luminance: f64,
     pub p99_luminance: f64,
     pub max_luminance: f64,
-    /// Incident power Σ E·A, RGB.
+    /// Incident power Σ E·A, RGB. Here and below, A is a texel's area at its
+    /// share that bounces light: where two surfaces coincide, each counts for
+    /// half (the bounce pass's areas, `solve::overlaps`).
     pub power_received: [f64; 3],
     /// Reflected power Σ ρ·E·A, RGB.
     pub power_reflected: [f64; 3],
@@ -342,7 +344,8 @@ struct Accumulator {
 }
 
 impl Accumulator {
-    fn add(&mut self, texel: &crate::texelize::Texel, value: &[f32; 3], width: u32) {
+    /// Adds `texel` of lightmap `value`; its powers count `share` of its area.
+    fn add(&mut self, texel: &crate::texelize::Texel, value: &[f32; 3], share: f32, width: u32) {
         let s = &mut self.stats;
         s.texels += 1;
         let (x, y) = (texel.x(width.max(1)), texel.y(width.max(1)));
@@ -368,13 +371,14 @@ impl Accumulator {
         let area = texel.area as f64;
         s.area += area;
         self.luminances.push(luminance(v));
+        let counted = area * share as f64;
         for c in 0..3 {
             s.mean_lightmap[c] += v[c] * area;
             s.sum_lightmap[c] += v[c];
-            let e = v[c] * std::f64::consts::PI * area;
+            let e = v[c] * std::f64::consts::PI * counted;
             s.power_received[c] += e;
             s.power_reflected[c] += e * albedo[c];
-            s.power_emitted[c] += std::f64::consts::PI * texel.emission[c] as f64 * area;
+            s.power_emitted[c] += std::f64::consts::PI * texel.emission[c] as f64 * counted;
         }
     }
 
@@ -397,11 +401,16 @@ impl Accumulator {
     }
 }
 
+/// Texel `i`'s share of its area that bounces light (`Solution::shares`).
+fn share(solution: &Solution, i: usize) -> f32 {
+    solution.shares.as_ref().map_or(1.0, |s| s[i])
+}
+
 /// Energy of every covered texel of `texels` (one atlas page).
 pub fn atlas_energy(texels: &TexelSet, solution: &Solution) -> EnergyStats {
     let mut all = Accumulator::default();
-    for (texel, value) in texels.texels.iter().zip(&solution.lightmap) {
-        all.add(texel, value, texels.width);
+    for (i, (texel, value)) in texels.texels.iter().zip(&solution.lightmap).enumerate() {
+        all.add(texel, value, share(solution, i), texels.width);
     }
     all.finish().0
 }
@@ -415,9 +424,9 @@ pub fn primitive_energy(
     names: &[String],
 ) -> Vec<PrimitiveEnergy> {
     let mut accumulators: Vec<Accumulator> = keys.iter().map(|_| Accumulator::default()).collect();
-    for (texel, value) in texels.texels.iter().zip(&solution.lightmap) {
+    for (i, (texel, value)) in texels.texels.iter().zip(&solution.lightmap).enumerate() {
         if let Some(entry) = accumulators.get_mut(texel.primitive as usize) {
-            entry.add(texel, value, texels.width);
+            entry.add(texel, value, share(solution, i), texels.width);
         }
     }
     keys.iter()

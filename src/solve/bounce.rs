@@ -77,7 +77,7 @@ use crate::colour::luminance;
 use crate::gpu::{self, Gpu, read_buffer};
 use crate::reference::Probes;
 use crate::scene::Scene;
-use crate::texelize::{Texel, TexelSet};
+use crate::texelize::TexelSet;
 
 /// Shooter slots per batch (`MAX_SHOOTERS` in include/bounce.wgsl): a near-field
 /// receiver lists the slots it is near as bits of one u32.
@@ -251,11 +251,7 @@ pub fn run(
     // share of the area that bounces (`overlaps`); the sums here weigh them
     // by the same areas.
     let gpu_texels = texels;
-    let weighted = shares.map(|shares| TexelSet {
-        texels: texels.texels.iter().zip(shares).map(|(t, s)| Texel { area: t.area * s, ..*t }).collect(),
-        tint: Vec::new(),
-        ..*texels
-    });
+    let weighted = shares.map(|shares| super::overlaps::counted(texels, shares));
     let texels = weighted.as_ref().unwrap_or(texels);
     let ones;
     let shares = match shares {

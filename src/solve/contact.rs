@@ -131,6 +131,9 @@ pub struct Geometry<'a> {
     pub surfaces: &'a Surfaces,
     pub texels: &'a TexelSet,
     pub hidden: Option<&'a [bool]>,
+    /// Each texel's share of its area that bounces light (`overlaps`): the
+    /// power changes weigh texels by it.
+    pub shares: Option<&'a [f32]>,
     /// The world width of a lightmap texel.
     pub texel_size: f64,
 }
@@ -215,8 +218,9 @@ pub fn fix(geometry: &Geometry, direct: &Direct, lightmap: &mut [[f32; 3]], cell
     }
     for (contact, before) in contacts.iter().zip(&before) {
         let t = &texels.texels[contact.texel];
+        let area = t.area as f64 * geometry.shares.map_or(1.0, |s| s[contact.texel] as f64);
         for c in 0..3 {
-            let change = std::f64::consts::PI * t.area as f64 * (lightmap[contact.texel][c] - before[c]) as f64;
+            let change = std::f64::consts::PI * area * (lightmap[contact.texel][c] - before[c]) as f64;
             stats.power_received_change[c] += change;
             stats.power_reflected_change[c] += t.albedo[c] as f64 * change;
         }
@@ -272,7 +276,7 @@ struct Tracer<'a> {
 
 impl<'a> Tracer<'a> {
     fn new(g: &Geometry<'a>) -> Tracer<'a> {
-        let Geometry { scene, surfaces: occluders, texels, hidden, texel_size } = *g;
+        let Geometry { scene, surfaces: occluders, texels, hidden, texel_size, .. } = *g;
         Tracer {
             texels,
             occluders,

@@ -123,6 +123,9 @@ pub struct Solution {
     /// a share of their light, or none (and those hidden under an opaque
     /// surface get none).
     pub overlapped: usize,
+    /// Each texel's share of its area that bounces light (`overlaps`), where
+    /// any is under 1: the energy sums weigh texels by it, as the bounce does.
+    pub shares: Option<Vec<f32>>,
     /// Passes left out and why, for the report.
     pub skipped: Vec<Skipped>,
 }
@@ -168,13 +171,14 @@ pub fn run(
         Some(_) => {}
     }
     let punctual = (!scene.lights.is_empty()).then(|| Punctual::new(scene, &occluders));
-    let mut lit = light_directly(&inputs, &occluders, environment, punctual.as_ref(), progress)?;
-
-    // The direct light alone, for the contact fix-up.
-    let direct_only = options.contact.then(|| lit.lightmap.clone());
     // Surfaces on or just over one another (`overlaps`).
     let texel_size = 1.0 / texels_per_unit.max(1e-30);
     let overlaps = overlaps::find(scene, texels, texel_size);
+    let shares = overlaps.as_ref().map(|o| o.shares.as_slice());
+    let mut lit = light_directly(&inputs, &occluders, environment, punctual.as_ref(), shares, progress)?;
+
+    // The direct light alone, for the contact fix-up.
+    let direct_only = options.contact.then(|| lit.lightmap.clone());
     let mut bounce_stats = bounce(&inputs, &occluders, overlaps.as_ref(), &mut lit, &mut skipped, progress)?;
     // What lies hidden under an opaque surface gets no light, whatever the
     // depth maps made of the surface over it (first, so the contact fix-up
@@ -198,7 +202,8 @@ pub fn run(
             total: direct,
         };
         let lightmap = &mut lit.lightmap;
-        let geometry = contact::Geometry { scene, surfaces: &occluders, texels, hidden, texel_size: texel_size as f64 };
+        let geometry =
+            contact::Geometry { scene, surfaces: &occluders, texels, hidden, shares, texel_size: texel_size as f64 };
         let stats = contact::fix(&geometry, &direct, lightmap, cell);
         if stats.gathered > 0
             && let Some(bounce) = bounce_stats.as_mut()
@@ -216,6 +221,7 @@ pub fn run(
         contact: contact_stats,
         supersampled: lit.supersampled,
         overlapped,
+        shares: overlaps.map(|o| o.shares),
         skipped,
     })
 }
@@ -252,9 +258,13 @@ fn light_directly(
     occluders: &LazyCell<Surfaces, impl FnOnce() -> Surfaces>,
     environment: Option<&LightSet>,
     punctual: Option<&Punctual>,
+    shares: Option<&[f32]>,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Lit> {
     let texels = inputs.texels;
+    // The power each pass delivered, over the texels as the bounce counts them.
+    let counted = shares.map(|shares| overlaps::counted(texels, shares));
+    let counted = counted.as_ref().unwrap_or(texels);
     let mut lit = Lit {
         lightmap: vec![[0.0f32; 3]; texels.texels.len()],
         direct: None,
@@ -269,7 +279,8 @@ fn light_directly(
     }
     let light = direct_light_with(inputs, occluders, environment, punctual, progress)?;
     lit.supersampled = light.supersampled;
-    if let Some(direct) = light.environment {
+    if let Some(mut direct) = light.environment {
+        direct.stats.power_received = direct::power_received(counted, &direct.irradiance);
         for (value, e) in lit.lightmap.iter_mut().zip(&direct.irradiance) {
             *value = e.map(|c| c / std::f32::consts::PI);
         }
@@ -278,7 +289,7 @@ fn light_directly(
         lit.coverage = Some(direct.coverage);
     }
     if let (Some(irradiance), Some(punctual)) = (light.punctual, punctual) {
-        lit.punctual = Some(punctual.stats(&texels.texels, &irradiance));
+        lit.punctual = Some(punctual.stats(&counted.texels, &irradiance));
         let own: Vec<[f32; 3]> = irradiance.iter().map(|e| e.map(|c| c / std::f32::consts::PI)).collect();
         for (value, l) in lit.lightmap.iter_mut().zip(&own) {
             (0..3).for_each(|c| value[c] += l[c]);

@@ -23,7 +23,7 @@ use glam::{IVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::scene::{AlphaMode, Scene};
-use crate::texelize::TexelSet;
+use crate::texelize::{Texel, TexelSet};
 
 /// Two triangles face the same way when their normals are within about 2°.
 pub(super) const SAME_FACING_COS: f32 = 0.9995;
@@ -42,6 +42,16 @@ pub struct Overlaps {
     pub shares: Vec<f32>,
     /// Hidden under an opaque surface within a texel: no light reaches it.
     pub hidden: Vec<bool>,
+}
+
+/// `texels` as the energy sums count them: each at the share of its area
+/// that bounces light (`shares`; its tint left out).
+pub fn counted(texels: &TexelSet, shares: &[f32]) -> TexelSet {
+    TexelSet {
+        texels: texels.texels.iter().zip(shares).map(|(t, s)| Texel { area: t.area * s, ..*t }).collect(),
+        tint: Vec::new(),
+        ..*texels
+    }
 }
 
 impl Overlaps {

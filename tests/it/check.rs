@@ -293,6 +293,32 @@ fn a_lone_quad_under_a_point_light_bounces_nothing_and_passes() {
 }
 
 #[test]
+fn surfaces_laid_twice_or_just_over_one_another_keep_the_energy_balance() {
+    // Where two surfaces coincide each receives the place's light but
+    // bounces half of it; a slab 1 mm over the ground hides what is under
+    // it. The energy sums weigh texels as the bounce pass does.
+    use bake::fixtures::{MeshData, Placement, SceneBuilder};
+    let env = fixture("sky_sun.exr");
+    for (name, slab) in [("twice", 0.0), ("slab", 0.001)] {
+        let dir = tempfile::tempdir().unwrap();
+        let mut scene = SceneBuilder::new();
+        let grey = [0.7, 0.7, 0.7, 1.0];
+        scene.object("ground", &MeshData::plane(4.0, 4.0, 2), grey, [0.0; 3], Placement::default());
+        let over = Placement::at(glam::Vec3::Y * slab);
+        let size = if slab > 0.0 { 2.0 } else { 4.0 };
+        scene.object("over", &MeshData::plane(size, size, 2), grey, [0.0; 3], over);
+        let block = Placement::at(glam::Vec3::new(1.0, 0.5, 1.0));
+        scene.object("box", &MeshData::cuboid([1.0; 3]), grey, [0.0; 3], block);
+        std::fs::write(dir.path().join("scene.glb"), scene.to_glb()).unwrap();
+        let args = ["scene.glb", "--env", env.to_str().unwrap(), "-o", "out", "--max-atlas-size", "64", "-q"];
+        let output = run(dir.path(), &[&args[..], &["--lights", "64"]].concat());
+        assert!(output.status.success(), "{name}: {}", String::from_utf8_lossy(&output.stderr));
+        let (code, text) = check(dir.path(), &["out/report.json"]);
+        assert_eq!(code, Some(0), "{name}: {text}");
+    }
+}
+
+#[test]
 fn every_fixture_keeps_the_invariants_as_the_ci_example_bakes_it() {
     // pipeline/ci-example.yml's options, the contact fix-up on: the crates
     // and the ball of `everything` and `corner` touch the ground, where the
