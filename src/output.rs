@@ -37,17 +37,56 @@ pub fn remove_staging_on_signals() {
     });
 }
 
-/// Removes the staging folders in `parent` whose process is gone (killed,
-/// or the machine went down), so they do not pile up in an output folder.
+/// The file in a staging folder its run holds locked while it lasts.
+const LOCK: &str = ".lock";
+
+/// Removes the staging folders in `parent` whose run is gone (killed, or the
+/// machine went down), so they do not pile up in an output folder. A run
+/// holds its folder's lock file locked (released by the kernel when the
+/// process ends, whatever ends it); a folder without one is judged by its
+/// process id, which another PID namespace or host may reuse.
 fn remove_stale(parent: &Path) {
     let Ok(entries) = std::fs::read_dir(parent) else { return };
     for entry in entries.flatten() {
         let name = entry.file_name();
-        let pid = name.to_str().and_then(|n| n.strip_prefix(STAGING_PREFIX)).and_then(|p| p.parse::<u32>().ok());
-        if pid.is_some_and(|pid| !process_exists(pid)) {
+        let Some(suffix) = name.to_str().and_then(|n| n.strip_prefix(STAGING_PREFIX)) else { continue };
+        let lock = std::fs::File::open(entry.path().join(LOCK)).ok();
+        let stale = match &lock {
+            Some(lock) => lock.try_lock().is_ok(),
+            None => {
+                let pid = suffix.split('-').next().and_then(|p| p.parse::<u32>().ok());
+                pid.is_some_and(|pid| !process_exists(pid))
+            }
+        };
+        if stale {
+            // Still holding the lock, so that no run takes the folder meanwhile.
             let _ = std::fs::remove_dir_all(entry.path());
         }
     }
+}
+
+/// A staging folder of this run's own in `parent`, named after the process
+/// (and a count where another run, in another PID namespace or on another
+/// host, has that name), with its lock file locked.
+fn make_staging(parent: &Path) -> Result<(PathBuf, std::fs::File)> {
+    let pid = std::process::id();
+    for n in 0u32.. {
+        let name = if n == 0 { format!("{STAGING_PREFIX}{pid}") } else { format!("{STAGING_PREFIX}{pid}-{n}") };
+        let dir = parent.join(name);
+        match std::fs::create_dir(&dir) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && n < 1000 => continue,
+            Err(e) => return Err(e).with_context(|| format!("cannot create staging folder '{}'", dir.display())),
+        }
+        let lock = std::fs::File::create(dir.join(LOCK))
+            .and_then(|lock| lock.lock().map(|()| lock))
+            .with_context(|| format!("cannot lock staging folder '{}'", dir.display()));
+        if lock.is_err() {
+            let _ = std::fs::remove_dir_all(&dir);
+        }
+        return Ok((dir, lock?));
+    }
+    unreachable!("the loop returns by its thousandth name")
 }
 
 #[cfg(target_os = "linux")]
@@ -64,6 +103,8 @@ fn process_exists(_: u32) -> bool {
 /// A staging folder for one run's outputs.
 pub struct Staging {
     dir: PathBuf,
+    /// Its lock file, locked while the run lasts (`remove_stale`).
+    _lock: std::fs::File,
     output: PathBuf,
     /// Input files (canonical paths) no output may replace.
     protected: Vec<PathBuf>,
@@ -96,21 +137,21 @@ impl Staging {
         if output.exists() && !output.is_dir() {
             bail!("output '{}' exists and is not a folder", output.display());
         }
-        let unique = format!("{STAGING_PREFIX}{}", std::process::id());
-        let dir = if output.is_dir() {
-            output.join(unique)
+        let parent = if output.is_dir() {
+            output.to_path_buf()
         } else {
             match output.parent().filter(|p| p.as_os_str().is_empty() || p.is_dir()) {
-                Some(parent) => parent.join(unique),
-                None => std::env::temp_dir().join(unique),
+                Some(parent) if parent.as_os_str().is_empty() => PathBuf::from("."),
+                Some(parent) => parent.to_path_buf(),
+                None => std::env::temp_dir(),
             }
         };
-        remove_stale(dir.parent().unwrap_or(Path::new(".")));
+        remove_stale(&parent);
         let mut dirs = active();
-        std::fs::create_dir_all(&dir).with_context(|| format!("cannot create staging folder '{}'", dir.display()))?;
+        let (dir, lock) = make_staging(&parent)?;
         dirs.push(dir.clone());
         let protected = inputs.iter().filter_map(|p| p.canonicalize().ok()).collect();
-        Ok(Staging { dir, output: output.to_path_buf(), protected, committed: false })
+        Ok(Staging { dir, _lock: lock, output: output.to_path_buf(), protected, committed: false })
     }
 
     /// Adds files an input consists of (its external buffers and images, the
@@ -139,8 +180,10 @@ impl Staging {
         let created = !self.output.exists();
         std::fs::create_dir_all(&self.output)
             .with_context(|| format!("cannot create output folder '{}'", self.output.display()))?;
-        let mut entries: Vec<PathBuf> =
-            std::fs::read_dir(&self.dir)?.filter_map(|e| e.ok().map(|e| e.path())).collect();
+        let mut entries: Vec<PathBuf> = std::fs::read_dir(&self.dir)?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|path| path.file_name() != Some(std::ffi::OsStr::new(LOCK)))
+            .collect();
         entries.sort();
         for staged in &entries {
             let target = self.final_path(staged);

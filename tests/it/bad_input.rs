@@ -1168,6 +1168,21 @@ fn staging_folders_are_removed_on_a_signal_and_stale_ones_on_the_next_run() {
     let output = case.run(&["scene.glb", "--env", env.to_str().unwrap()]);
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     assert_eq!(staging(&case), [".bake-staging-notapid"]);
+    // A run's lock, not its process id, says it is alive: a run in another
+    // PID namespace or on another host sharing the folder (here this test,
+    // holding the lock of a folder named after no process of this one) keeps
+    // its folder; once the lock is released, the next run removes it.
+    let live = case.path("out/.bake-staging-999999998");
+    std::fs::create_dir_all(&live).unwrap();
+    let lock = std::fs::File::create(live.join(".lock")).unwrap();
+    lock.lock().unwrap();
+    let output = case.run(&["scene.glb", "--env", env.to_str().unwrap()]);
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    assert_eq!(staging(&case), [".bake-staging-999999998", ".bake-staging-notapid"]);
+    drop(lock);
+    let output = case.run(&["scene.glb", "--env", env.to_str().unwrap()]);
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    assert_eq!(staging(&case), [".bake-staging-notapid"]);
 }
 
 #[test]
