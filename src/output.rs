@@ -192,9 +192,7 @@ impl Staging {
             {
                 bail!("the output '{}' would replace a file of an input; choose another -o folder", target.display());
             }
-            if is_folder(&target) {
-                bail!("the output '{}' is a folder; move it or choose another -o folder", target.display());
-            }
+            refuse_folder(&target)?;
         }
         if let Err(e) = place_all(&entries, &self.output, &self.dir.join(REPLACED)) {
             if created {
@@ -211,8 +209,12 @@ impl Staging {
 /// Where `commit` keeps the files it replaces until every file is in place.
 const REPLACED: &str = ".replaced";
 
-fn is_folder(path: &Path) -> bool {
-    path.symlink_metadata().is_ok_and(|m| m.is_dir())
+/// An output never replaces a folder.
+fn refuse_folder(target: &Path) -> Result<()> {
+    if target.symlink_metadata().is_ok_and(|m| m.is_dir()) {
+        bail!("the output '{}' is a folder; move it or choose another -o folder", target.display());
+    }
+    Ok(())
 }
 
 /// Moves each of `staged` into `output`, first moving the file it replaces
@@ -242,17 +244,14 @@ fn place_all(staged: &[PathBuf], output: &Path, replaced: &Path) -> Result<()> {
 /// Moves `staged` to `target`, the file there (never a folder) first to
 /// `aside`, which it returns; on a failure the old file is back in place.
 fn place(staged: &Path, target: &Path, aside: &Path) -> Result<Option<PathBuf>> {
-    let old = match target.symlink_metadata() {
-        Err(_) => None,
-        Ok(m) if m.is_dir() => {
-            bail!("the output '{}' is a folder; move it or choose another -o folder", target.display())
-        }
-        Ok(_) => {
-            std::fs::create_dir_all(aside.parent().unwrap_or(aside))
-                .and_then(|_| std::fs::rename(target, aside))
-                .with_context(|| format!("replacing '{}'", target.display()))?;
-            Some(aside.to_path_buf())
-        }
+    refuse_folder(target)?;
+    let old = if target.symlink_metadata().is_ok() {
+        std::fs::create_dir_all(aside.parent().unwrap_or(aside))
+            .and_then(|_| std::fs::rename(target, aside))
+            .with_context(|| format!("replacing '{}'", target.display()))?;
+        Some(aside.to_path_buf())
+    } else {
+        None
     };
     if let Err(e) = move_file(staged, target) {
         if let Some(old) = &old {

@@ -262,9 +262,9 @@ fn light_directly(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Lit> {
     let texels = inputs.texels;
-    // The power each pass delivered, over the texels as the bounce counts them.
+    // Where surfaces overlap, the power each pass delivered is summed over
+    // the texels as the bounce counts them.
     let counted = shares.map(|shares| overlaps::counted(texels, shares));
-    let counted = counted.as_ref().unwrap_or(texels);
     let mut lit = Lit {
         lightmap: vec![[0.0f32; 3]; texels.texels.len()],
         direct: None,
@@ -280,7 +280,9 @@ fn light_directly(
     let light = direct_light_with(inputs, occluders, environment, punctual, progress)?;
     lit.supersampled = light.supersampled;
     if let Some(mut direct) = light.environment {
-        direct.stats.power_received = direct::power_received(counted, &direct.irradiance);
+        if let Some(counted) = &counted {
+            direct.stats.power_received = direct::power_received(counted, &direct.irradiance);
+        }
         for (value, e) in lit.lightmap.iter_mut().zip(&direct.irradiance) {
             *value = e.map(|c| c / std::f32::consts::PI);
         }
@@ -289,7 +291,7 @@ fn light_directly(
         lit.coverage = Some(direct.coverage);
     }
     if let (Some(irradiance), Some(punctual)) = (light.punctual, punctual) {
-        lit.punctual = Some(punctual.stats(&counted.texels, &irradiance));
+        lit.punctual = Some(punctual.stats(&counted.as_ref().unwrap_or(texels).texels, &irradiance));
         let own: Vec<[f32; 3]> = irradiance.iter().map(|e| e.map(|c| c / std::f32::consts::PI)).collect();
         for (value, l) in lit.lightmap.iter_mut().zip(&own) {
             (0..3).for_each(|c| value[c] += l[c]);
