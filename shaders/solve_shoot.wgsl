@@ -74,6 +74,10 @@ struct GatheredGroups {
 }
 @group(0) @binding(17) var<storage, read> gathered: GatheredGroups;
 
+// Per patch: the covered share of its texels' hemispheres (select's);
+// `finish` measures it where no direct pass did (`measure_coverage`).
+@group(0) @binding(18) var<storage, read_write> patch_coverage: array<f32>;
+
 // The batch's shooters' scales by slot, as `finish` leaves them: read by
 // `main` as a uniform buffer, for the reason the shooters are one, and
 // written by `finish` (each in a group of its own).
@@ -622,5 +626,8 @@ fn finish(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_ind
         }
         patch_scale[shooters.items[k].patch_index] = scale;
         slot_scales_out[k] = scale;
+        if (params.measure_coverage != 0u) {
+            patch_coverage[shooters.items[k].patch_index] = share;
+        }
     }
 }

@@ -260,7 +260,7 @@ impl Summary {
             "lights",
             match &self.environment {
                 Some(env) => format!("{} from {}", self.lights, printable(&env.display().to_string())),
-                None => "none: lit by emissive materials only".to_string(),
+                None => "no environment: the scenes' own emissive materials and punctual lights".to_string(),
             },
         );
         if let Some(peak) = self.peak_rss_bytes {

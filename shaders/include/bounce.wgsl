@@ -64,6 +64,9 @@ struct BounceParams {
     cell: u32,             // side of the atlas cell patches are cut from, texels
     in_plane: f32,         // a receiver this close to a shooter's plane lies in it, metres (rounding)
     receiver_row_shift: u32,  // receivers per row of the gather's receiver texture, as a shift
+    // 1 where no direct pass measured the scene's coverage: `finish` writes
+    // each patch's measured covered share into `patch_coverage` instead.
+    measure_coverage: u32,
     // The light a surface of full coverage will still receive (L_lm, rgb)
     // per unit of unshot power Σ ΔL·A: the ambient term's factor.
     overshoot: vec4f,

@@ -426,15 +426,27 @@ impl Gpu {
     ) -> wgpu::Buffer {
         let size = parts.iter().map(|p| std::mem::size_of_val(*p)).sum::<usize>();
         let size = size.max(std::mem::size_of::<T>()).max(16) as u64;
+        self.buffer_of_parts(label, size, parts, wgpu::BufferUsages::STORAGE | extra)
+    }
+
+    /// A buffer of `size` bytes (rounded up for copies) holding `parts`
+    /// one after another, zero-padded. wgpu's `create_buffer_init` panics
+    /// where the device could not allocate it: here its error is in the
+    /// sink instead, and `check` ends the stage with it (exit 2).
+    fn buffer_of_parts<T: bytemuck::Pod>(
+        &self,
+        label: &str,
+        size: u64,
+        parts: &[&[T]],
+        usage: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
         let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size: size.next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT),
-            usage: wgpu::BufferUsages::STORAGE | extra,
+            usage,
             mapped_at_creation: true,
         });
-        {
-            let mut mapped =
-                buffer.get_mapped_range_mut(..).expect("a buffer created mapped has its whole range mapped");
+        if let Ok(mut mapped) = buffer.get_mapped_range_mut(..) {
             let mut offset = 0;
             for part in parts {
                 let bytes: &[u8] = bytemuck::cast_slice(part);
@@ -480,12 +492,8 @@ impl Gpu {
         value: &T,
         extra: wgpu::BufferUsages,
     ) -> wgpu::Buffer {
-        use wgpu::util::DeviceExt;
-        self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: bytemuck::bytes_of(value),
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST | extra,
-        })
+        let usage = wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST | extra;
+        self.buffer_of_parts(label, std::mem::size_of::<T>() as u64, &[std::slice::from_ref(value)], usage)
     }
 
     /// Workgroup counts for `items` invocations of `size`, spread over x and y
@@ -604,4 +612,21 @@ pub fn bind_buffers(
         .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
         .collect();
     gpu.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout, entries: &entries })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A buffer the device refuses (here, over its size limit) leaves its
+    /// error for `check`, which a bake turns into exit 2, rather than a
+    /// panic where the buffer is filled.
+    #[test]
+    fn a_buffer_the_device_cannot_make_is_an_error_not_a_panic() {
+        let gpu = Gpu::new(None).expect("an adapter");
+        let too_large = gpu.limits.max_buffer_size + 16;
+        gpu.buffer_of_parts::<u32>("too large", too_large, &[&[1, 2, 3]], wgpu::BufferUsages::STORAGE);
+        let error = gpu.check("upload").expect_err("the device refused the buffer");
+        assert!(error.to_string().starts_with("upload: GPU error on "), "{error}");
+    }
 }

@@ -269,6 +269,10 @@ pub fn run(
         params.overshoot = overshoot_factor(&sums);
     }
     let patch_coverage = patch_coverage(texels, patches, coverage);
+    // Without a direct pass, each patch's coverage is measured on its first
+    // shot: a scene that catches little of its light (a lone quad under a
+    // point light) neither shoots ahead nor waits on light that cannot land.
+    params.measure_coverage = coverage.is_none() as u32;
     let patch_albedo = patch_albedo(texels, patches);
     let order = SubCellOrder::new(patches, texels);
     let inputs = Inputs {
@@ -495,8 +499,18 @@ impl Tally {
         let reference_error = probe_error(gpu, &resources.lightmap, probes, ambient)?;
         self.probe_seconds += probe_start.elapsed().as_secs_f64();
         self.trace.push(TracePoint { seconds, shots: self.shots, unshot_fraction, error_estimate, reference_error });
-        let landing_in = *self.landing_in.get_or_insert(stats.landing as f64);
-        Ok(if landing_in > 0.0 { stats.landing as f64 / landing_in } else { 0.0 })
+        let mut landing_in = *self.landing_in.get_or_insert(stats.landing as f64);
+        if sums.initial_closure.is_none() {
+            // No direct pass weighed the light put in by coverage (each patch
+            // measures its own on its first shot): the share of the shot
+            // light that landed so far weighs it instead.
+            landing_in *= measured_closure(self.received_total, self.shot_total);
+        }
+        Ok(match (stats.landing > 0.0, landing_in > 0.0) {
+            (false, _) => 0.0,
+            (true, true) => stats.landing as f64 / landing_in,
+            (true, false) => f64::INFINITY,
+        })
     }
 }
 

@@ -44,7 +44,9 @@ pub(super) struct BounceParams {
     in_plane: f32,
     /// Receivers a row of the gather's receiver texture holds, as a shift.
     pub(super) receiver_row_shift: u32,
-    _pad: [u32; 1],
+    /// 1 where no direct pass measured the coverage: the form factors'
+    /// `finish` measures each patch's on its first shot.
+    pub(super) measure_coverage: u32,
     /// The light a surface of full coverage will still receive per unit of
     /// unshot power (rgb; w unused): what a shooter shoots ahead.
     pub(super) overshoot: [f32; 4],
@@ -103,7 +105,7 @@ pub(super) fn params(
         cell: patches.cell,
         in_plane: shooter_cull::in_plane(&texels.texels),
         receiver_row_shift: receiver_row_shift(texels.texels.len() as u32, gpu.limits.max_texture_dimension_2d),
-        _pad: [0; 1],
+        measure_coverage: 0,
         overshoot: [0.0; 4],
     };
     (params, Dispatch { shooter_count, face, tiles_per_row, tile_rows, patch_groups })
@@ -165,6 +167,9 @@ pub(super) struct Resources {
     /// Per patch: the light per unit albedo it would shoot ahead now (rgb),
     /// written by the select pass, read by the next batch's power pass.
     pub(super) patch_overshoot: wgpu::Buffer,
+    /// Per patch: the covered share of its texels' hemispheres (select; the
+    /// form factors' `finish` writes it where `measure_coverage`).
+    pub(super) patch_coverage: wgpu::Buffer,
     /// Per patch: its slot + 1 once chosen in the batch (select → gather).
     pub(super) chosen: wgpu::Buffer,
     /// The batch's shooters (select → power pass, culls, gather).
@@ -198,6 +203,7 @@ impl Resources {
             patch_power: gpu.zeroed_storage_buffer::<[f32; 4]>("solve_patch_power power", patch_count, none),
             patch_origin: gpu.zeroed_storage_buffer::<[f32; 4]>("solve_patch_power origins", patch_count, none),
             patch_overshoot: gpu.zeroed_storage_buffer::<[f32; 4]>("solve_select overshoot", patch_count, none),
+            patch_coverage: gpu.storage_buffer("solve_select patch coverage", inputs.patch_coverage, none),
             chosen: gpu.zeroed_storage_buffer::<u32>("solve_select chosen", patch_count, none),
             shooters: gpu.storage_buffer(
                 "solve_select shooters",

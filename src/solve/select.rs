@@ -53,7 +53,6 @@ pub(super) struct Select {
 impl Select {
     pub(super) fn new(gpu: &Gpu, r: &Resources, inputs: &Inputs) -> Select {
         let none = wgpu::BufferUsages::empty();
-        let patch_coverage = gpu.storage_buffer("solve_select patch coverage", inputs.patch_coverage, none);
         let patch_albedo = gpu.storage_buffer("solve_select patch albedo", inputs.patch_albedo, none);
         let stats = gpu.storage_buffer("solve_select stats", &[GpuStats::default()], wgpu::BufferUsages::COPY_SRC);
         let layout = bind_group_layout(gpu);
@@ -69,7 +68,7 @@ impl Select {
                 &r.shooters,
                 &stats,
                 &r.patch_origin,
-                &patch_coverage,
+                &r.patch_coverage,
                 &r.hemicube_faces,
                 &patch_albedo,
                 &r.patch_overshoot,

@@ -222,6 +222,8 @@ fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
             gpu::storage_entry(16, true, compute),
             // 17: the groups `main` gathers (solve_shooter_cull)
             gpu::storage_entry(17, true, compute),
+            // 18: per-patch covered share (written by `finish` where measured)
+            gpu::storage_entry(18, false, compute),
         ],
     )
 }
@@ -254,6 +256,7 @@ fn bind_group(
             buffer(15, &cull.group_shooters),
             buffer(16, &r.members),
             buffer(17, &cull.gathered),
+            buffer(18, &r.patch_coverage),
         ],
     })
 }

@@ -270,26 +270,39 @@ fn an_emitter_lit_room_keeps_its_energy_balance() {
 
 #[test]
 fn a_lone_quad_under_a_point_light_bounces_nothing_and_passes() {
-    // Nothing sees anything: the bounce pass converges before its first
-    // shot, and its closure is the scene's coverage (0), not a closed room's 1.
+    // Nothing sees anything. Under an environment, the bounce pass converges
+    // before its first shot, and its closure is the scene's coverage (0),
+    // not a closed room's 1. Without one, no direct pass measured the
+    // coverage: each patch measures its own on its first shot, and the pass
+    // converges then. (A white quad shot 64 times a patch, its cap, waiting
+    // on light shot ahead that could not land.)
     use bake::fixtures::{MeshData, Placement, SceneBuilder};
     let dir = tempfile::tempdir().unwrap();
     let mut scene = SceneBuilder::new();
-    scene.object("quad", &MeshData::plane(2.0, 2.0, 1), [0.8, 0.8, 0.8, 1.0], [0.0; 3], Placement::default());
+    scene.object("quad", &MeshData::plane(4.0, 4.0, 1), [1.0; 4], [0.0; 3], Placement::default());
     scene.light("lamp", serde_json::json!({ "type": "point", "intensity": 20.0 }), Placement::at(glam::Vec3::Y));
     std::fs::write(dir.path().join("quad.glb"), scene.to_glb()).unwrap();
     let env = fixture("sky_constant.hdr");
-    let args =
-        ["quad.glb", "--env", env.to_str().unwrap(), "-o", "out", "--max-atlas-size", "32", "--lights", "16", "-q"];
-    let output = run(dir.path(), &args);
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
-    let (code, text) = check(dir.path(), &["out/report.json"]);
-    assert_eq!(code, Some(0), "{text}");
-    let typed: bake::report::Report =
-        serde_json::from_slice(&std::fs::read(dir.path().join("out/report.json")).unwrap()).unwrap();
-    let bounce = typed.scenes[0].bounce.as_ref().expect("a point light's light may bounce: the pass runs");
-    assert_eq!(bounce.shots, 0);
-    assert!(bounce.closure < 1e-3 && bounce.shot_closure < 1e-3, "{} {}", bounce.closure, bounce.shot_closure);
+    for with_env in [true, false] {
+        let mut args = vec!["quad.glb", "-o", "out", "--max-atlas-size", "64", "--lights", "16", "-q"];
+        if with_env {
+            args.extend(["--env", env.to_str().unwrap()]);
+        }
+        let output = run(dir.path(), &args);
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        let (code, text) = check(dir.path(), &["out/report.json"]);
+        assert_eq!(code, Some(0), "{text}");
+        let typed: bake::report::Report =
+            serde_json::from_slice(&std::fs::read(dir.path().join("out/report.json")).unwrap()).unwrap();
+        let bounce = typed.scenes[0].bounce.as_ref().expect("a point light's light may bounce: the pass runs");
+        assert_eq!(bounce.stopped_by, bake::solve::StopReason::Converged);
+        if with_env {
+            assert_eq!(bounce.shots, 0);
+        } else {
+            assert!(bounce.shots <= 2 * bounce.patches as u64, "{} shots, {} patches", bounce.shots, bounce.patches);
+        }
+        assert!(bounce.closure < 1e-3 && bounce.shot_closure < 1e-3, "{} {}", bounce.closure, bounce.shot_closure);
+    }
 }
 
 #[test]
@@ -323,17 +336,17 @@ fn every_fixture_keeps_the_invariants_as_the_ci_example_bakes_it() {
     // pipeline/ci-example.yml's options, the contact fix-up on: the crates
     // and the ball of `everything` and `corner` touch the ground, where the
     // fix-up traces light no shot of the bounce pass carried.
+    // One run of all four, as a build step bakes them (and one start-up).
     let dir = tempfile::tempdir().unwrap();
     let env = fixture("sky_sun.exr");
-    for scene in ["corner.glb", "everything.glb", "sphere.glb", "sphere_on_ground.glb"] {
-        let out = format!("out-{scene}");
-        let input = fixture(scene);
-        let args = [input.to_str().unwrap(), "--env", env.to_str().unwrap(), "-o", &out, "-q"];
-        let output = run(dir.path(), &[&args[..], &["--max-atlas-size", "128", "--lights", "256"]].concat());
-        assert!(output.status.success(), "{scene}: {}", String::from_utf8_lossy(&output.stderr));
-        let (code, text) = check(dir.path(), &[&format!("{out}/report.json")]);
-        assert_eq!(code, Some(0), "{scene}: {text}");
-    }
+    let scenes = ["corner.glb", "everything.glb", "sphere.glb", "sphere_on_ground.glb"].map(fixture);
+    let mut args: Vec<&str> = scenes.iter().map(|s| s.to_str().unwrap()).collect();
+    args.extend(["--env", env.to_str().unwrap(), "-o", "out", "-q", "--max-atlas-size", "128", "--lights", "256"]);
+    let output = run(dir.path(), &args);
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let (code, text) = check(dir.path(), &["out/report.json"]);
+    assert_eq!(code, Some(0), "{text}");
+    assert!(text.contains("PASS: 4 scene(s)"), "{text}");
 }
 
 #[test]
