@@ -12,6 +12,10 @@ use anyhow::{Context, Result, bail};
 /// The name of a run's staging folder: the prefix and the run's process id.
 const STAGING_PREFIX: &str = ".bake-staging-";
 
+/// The most an output's name adds to its input's stem ('.image4294967295.jpeg'
+/// in the `.gltf` form; '.lightmap0.ktx2' in a `.glb` bake).
+const LONGEST_SUFFIX: usize = 24;
+
 /// This process's staging folders, for the signal handler to remove.
 static ACTIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
@@ -39,6 +43,38 @@ pub fn remove_staging_on_signals() {
 
 /// The file in a staging folder its run holds locked while it lasts.
 const LOCK: &str = ".lock";
+
+/// Refuses, before the bake, an input whose outputs' names would be longer
+/// than the folder they are staged in takes (255 bytes on most filesystems).
+fn refuse_long_names(parent: &Path, inputs: &[PathBuf]) -> Result<()> {
+    let most = name_max(parent);
+    for input in inputs {
+        let stem = input.file_stem().map_or(0, |s| s.as_encoded_bytes().len());
+        if stem + LONGEST_SUFFIX > most {
+            bail!(
+                "input '{}': its name is {stem} bytes before the extension; its outputs add up to {LONGEST_SUFFIX} \
+                 more, past the {most} bytes a file name may have in '{}'; rename it",
+                input.display(),
+                parent.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The longest file name `folder`'s filesystem takes, in bytes (255 where
+/// it does not say).
+fn name_max(folder: &Path) -> usize {
+    #[cfg(unix)]
+    if let Ok(path) = std::ffi::CString::new(folder.as_os_str().as_encoded_bytes()) {
+        // SAFETY: `path` is a NUL-terminated string that outlives the call.
+        let most = unsafe { libc::pathconf(path.as_ptr(), libc::_PC_NAME_MAX) };
+        if most > 0 {
+            return most as usize;
+        }
+    }
+    255
+}
 
 /// Removes the staging folders in `parent` whose run is gone (killed, or the
 /// machine went down), so they do not pile up in an output folder. A run
@@ -146,6 +182,7 @@ impl Staging {
                 None => std::env::temp_dir(),
             }
         };
+        refuse_long_names(&parent, inputs)?;
         remove_stale(&parent);
         let mut dirs = active();
         let (dir, lock) = make_staging(&parent)?;

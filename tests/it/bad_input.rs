@@ -647,6 +647,23 @@ fn a_folder_where_an_output_goes_leaves_the_output_folder_as_it_was() {
     assert_eq!(snapshot(&case.path("out")), before, "the output folder changed");
 }
 
+#[test]
+fn an_input_whose_outputs_names_would_be_too_long_is_refused_before_the_bake() {
+    // The outputs add up to 24 bytes to the input's stem; 255 bytes is the
+    // longest name the test's filesystem takes. Found at the export, after
+    // the whole bake, it cost the run.
+    let case = Case::new();
+    let (fits, too_long) = ("f".repeat(255 - 24), "t".repeat(255 - 23));
+    for stem in [&fits, &too_long] {
+        std::fs::copy(fixture("sphere.glb"), case.path(&format!("{stem}.glb"))).unwrap();
+    }
+    let problem = "its name is 232 bytes before the extension; its outputs add up to 24 more, past the 255 bytes";
+    case.refused(&[&format!("{too_long}.glb")], &too_long, problem);
+    let output = case.bake(&format!("{fits}.glb"));
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    assert!(case.path(&format!("out/{fits}.lightmap0.ktx2")).exists());
+}
+
 // ---------------------------------------------------------------------------------------------
 // Environments
 
