@@ -506,6 +506,16 @@ fn collect_mesh(
             }
             continue;
         }
+        let drawn = primitive.indices().unwrap_or_else(|| position_accessor.clone()).count();
+        if mode == Mode::Triangles && drawn % 3 != 0 {
+            // The spec asks for whole triangles; engines draw those there are.
+            let rest = if drawn % 3 == 1 { "the last vertex is" } else { "the last 2 vertices are" };
+            notices.push(format!(
+                "{what} draws {drawn} vertices, not a multiple of 3: {} triangles are baked and {rest} left out, \
+                 as engines leave them",
+                drawn / 3
+            ));
+        }
         let read = placed.read(&primitive, &position_accessor, material, &what).with_context(|| what.clone())?;
         if read.primitive.indices.is_empty() {
             notices.push(format!("{what} has no triangles: left out of the bake"));

@@ -191,6 +191,27 @@ fn an_accessor_past_its_buffer_view_is_refused() {
 }
 
 #[test]
+fn a_triangle_list_cut_short_bakes_its_whole_triangles_with_a_notice() {
+    // Not a multiple of 3 (the spec asks for one): engines draw the whole
+    // triangles; so does bake, and it says so.
+    let (mut json, bin) = parts();
+    let indices = json["meshes"][0]["primitives"][0]["indices"].as_u64().unwrap() as usize;
+    let count = json["accessors"][indices]["count"].as_u64().unwrap();
+    json["accessors"][indices]["count"] = json!(count - 2);
+    let case = Case::new();
+    case.write("cut.glb", &glb(&json, &bin));
+    let output = case.bake("cut.glb");
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let notices = &report(&case).scenes[0].notices;
+    let cut = format!(
+        "primitive 0 draws {} vertices, not a multiple of 3: {} triangles are baked and the last vertex is left out",
+        count - 2,
+        count / 3 - 1
+    );
+    assert!(notices.iter().any(|n| n.contains(&cut)), "{notices:?}");
+}
+
+#[test]
 fn indices_past_the_vertex_count_are_refused() {
     let (json, mut bin) = parts();
     let at = element_offset(&json, 3, 5);
