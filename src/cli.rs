@@ -186,7 +186,8 @@ pub struct Args {
     pub gpu_timeout: f64,
 
     /// Refuse an input that draws more triangles than this, node and GPU instances expanded, before reading them
-    /// (unwrapping takes about 0.7 s per 100 000 triangles on 2 cores)
+    /// (unwrapping takes about 0.7 s per 100 000 triangles on 2 cores), or reads more than 3 vertices a triangle,
+    /// or draws more than one primitive per 64 triangles of it
     #[arg(long, value_name = "N", default_value_t = crate::limits::DEFAULT_MAX_TRIANGLES,
           value_parser = clap::builder::RangedI64ValueParser::<u64>::new().range(1..))]
     pub max_triangles: u64,

@@ -1325,6 +1325,46 @@ fn a_scene_over_the_triangle_budget_is_refused_before_it_is_read() {
 }
 
 #[test]
+fn a_triangle_drawn_by_more_gpu_instances_than_the_budget_is_refused_before_it_is_read() {
+    // Each instance becomes a mesh of its own in the output: one triangle
+    // drawn 100,000 times from a 1.2 MB file took 2.4 GB and wrote 134 MB.
+    let case = Case::new();
+    let instances = 100_000u64;
+    edited(&case, "instances.glb", |json, bin| {
+        let sphere = &json["meshes"][1]["primitives"][0];
+        let mut corners = json["accessors"][sphere["attributes"]["POSITION"].as_u64().unwrap() as usize].clone();
+        corners["count"] = json!(3);
+        let offset = bin.len();
+        bin.resize(offset + 12 * instances as usize, 0);
+        json["bufferViews"].as_array_mut().unwrap().push(json!({
+            "buffer": 0, "byteOffset": offset, "byteLength": 12 * instances
+        }));
+        json["buffers"][0]["byteLength"] = json!(bin.len());
+        let view = json["bufferViews"].as_array().unwrap().len() - 1;
+        let accessors = json["accessors"].as_array_mut().unwrap();
+        accessors.push(corners);
+        accessors.push(json!({ "bufferView": view, "componentType": 5126, "count": instances, "type": "VEC3" }));
+        let (corners, translations) = (accessors.len() - 2, accessors.len() - 1);
+        let meshes = json["meshes"].as_array_mut().unwrap();
+        meshes.push(json!({ "primitives": [{ "attributes": { "POSITION": corners } }] }));
+        let mesh = meshes.len() - 1;
+        let nodes = json["nodes"].as_array_mut().unwrap();
+        nodes.push(json!({ "mesh": mesh, "extensions": {
+            "EXT_mesh_gpu_instancing": { "attributes": { "TRANSLATION": translations } }
+        } }));
+        let node = nodes.len() - 1;
+        json["scenes"][0]["nodes"].as_array_mut().unwrap().push(json!(node));
+        json["extensionsUsed"] = json!(["EXT_mesh_gpu_instancing"]);
+    });
+    let problem = format!(
+        "draws {} primitives (node and GPU instances expanded, each a mesh of its own in the output), more than the \
+         budget of 62500 (one per 64 triangles of --max-triangles)",
+        instances + 2
+    );
+    case.refused(&["instances.glb"], "instances.glb", &problem);
+}
+
+#[test]
 fn primitives_reading_more_vertices_than_the_budget_are_refused_before_they_are_read() {
     // 64 more primitives on the sphere, each drawing one triangle out of the
     // sphere's whole POSITION accessor, as a 22 M-vertex accessor (a sparse
