@@ -330,6 +330,7 @@ mod tests {
                 cell,
                 in_plane,
                 receiver_row_shift,
+                measure_coverage,
                 overshoot,
             }
         );

@@ -180,14 +180,19 @@ pub fn node(script: &str, args: &[&std::ffi::OsStr]) -> String {
 /// Bakes `input` through the CLI under the sun-and-sky fixture with `args`
 /// into `out`; fails the test on a failed bake, else returns its report.
 pub fn bake_file(input: &Path, out: &Path, args: &[&str]) -> bake::report::Report {
+    bake_files(&[input], out, args)
+}
+
+/// As `bake_file`, for several inputs in one run (one report, a scene each).
+pub fn bake_files(inputs: &[&Path], out: &Path, args: &[&str]) -> bake::report::Report {
     let env = repo("fixtures/sky_sun.exr");
     let output = bake_command()
-        .arg(input)
+        .args(inputs)
         .args(["--env".as_ref(), env.as_os_str(), "-o".as_ref(), out.as_os_str()])
         .args(args)
         .output()
         .expect("bake runs");
-    assert!(output.status.success(), "bake {}: {}", input.display(), String::from_utf8_lossy(&output.stderr));
+    assert!(output.status.success(), "bake {inputs:?}: {}", String::from_utf8_lossy(&output.stderr));
     serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap()
 }
 

@@ -37,14 +37,16 @@ fn gltfpack(input: &Path, dir: &Path, name: &str, flags: &[&str]) -> PathBuf {
 /// light (the files are compared, not convergence); returns its report.
 /// A short bake: the files are compared with each other, not with the
 /// converged light (no contact fix-up, which the corner's walls keep busy).
-fn bake(input: &Path, out: &Path) -> Report {
+/// `inputs` baked in one run (one start-up), a scene each in the report.
+fn bake_all(inputs: &[&Path], out: &Path) -> Report {
     let args = ["--max-atlas-size", "128", "--lights", "128", "--max-shots", "256", "--no-contact-trace", "-q"];
-    common::bake_file(input, out, &args)
+    common::bake_files(inputs, out, &args)
 }
 
-/// Each primitive's (texels, mean L_lm), in report order.
-fn primitives(report: &Report) -> Vec<(usize, [f64; 3])> {
-    report.scenes[0].energy.iter().map(|e| (e.stats.texels, e.stats.mean_lightmap)).collect()
+/// Each primitive's (texels, mean L_lm) in the scene named `name`, in order.
+fn scene_primitives(report: &Report, name: &str) -> Vec<(usize, [f64; 3])> {
+    let scene = report.scenes.iter().find(|s| s.name == name).unwrap_or_else(|| panic!("no scene '{name}'"));
+    scene.energy.iter().map(|e| (e.stats.texels, e.stats.mean_lightmap)).collect()
 }
 
 /// Every primitive's mean within 2 % of the plain file's, and its texels
@@ -80,12 +82,12 @@ fn quantized_and_meshopt_compressed_files_bake_as_the_plain_file_does() {
     assert!(required.contains("EXT_meshopt_compression"), "{required}");
     assert!(json(&compressed).to_string().contains("OCTAHEDRAL"), "-cc filters the normals");
 
-    let baseline = primitives(&bake(&plain, &dir.path().join("out-plain")));
-    assert_bakes_alike("quantized", &primitives(&bake(&quantized, &dir.path().join("out-q"))), &baseline);
-    let report = bake(&compressed, &dir.path().join("out-c"));
-    assert_bakes_alike("compressed", &primitives(&report), &baseline);
+    let report = bake_all(&[&plain, &quantized, &compressed], &dir.path().join("out"));
+    let baseline = scene_primitives(&report, "plain");
+    assert_bakes_alike("quantized", &scene_primitives(&report, "quantized"), &baseline);
+    assert_bakes_alike("compressed", &scene_primitives(&report, "compressed"), &baseline);
     // The output is plain glTF: decoded, the extension gone.
-    let output = json(&dir.path().join("out-c/compressed.glb"));
+    let output = json(&dir.path().join("out/compressed.glb"));
     assert!(!output.to_string().contains("meshopt_compression"), "the output still names the extension");
 }
 
@@ -106,11 +108,11 @@ fn gltfpacks_gpu_instances_bake_as_the_nodes_they_replace() {
 
     let plain = gltfpack(&input, dir.path(), "plain", &["-noq", "-kn"]);
     let instanced = gltfpack(&input, dir.path(), "instanced", &["-mi", "-cc"]);
-    let packed = bake(&instanced, &dir.path().join("out-i"));
-    let energy = &packed.scenes[0].energy;
+    let report = bake_all(&[&instanced, &plain], &dir.path().join("out"));
+    let energy = &report.scenes.iter().find(|s| s.name == "instanced").expect("the instanced scene").energy;
     let instances: Vec<_> = energy.iter().filter_map(|e| e.instance).collect();
     assert_eq!(instances, [0, 1, 2], "gltfpack wrote the boxes as three instances of one node");
-    let baseline = bake(&plain, &dir.path().join("out-p"));
     // Instances come in the node's order, as the plain nodes do.
-    assert_bakes_alike("instanced", &primitives(&packed), &primitives(&baseline));
+    let (packed, baseline) = (scene_primitives(&report, "instanced"), scene_primitives(&report, "plain"));
+    assert_bakes_alike("instanced", &packed, &baseline);
 }
