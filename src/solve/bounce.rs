@@ -21,10 +21,11 @@
 //! opening still held much of its own light, and the ambient term, spread
 //! over the whole scene, put little of it back there. (Against the power put
 //! in times the share of shot light that landed, a ground whose neighbours
-//! show it only their backs never converged.) Without a direct pass (no
-//! `--env`), each patch's coverage is the covered share of its hemicube,
-//! measured on its first shot (`finish`; 1 before), and the light put in
-//! is weighted by the share of shot light that landed so far.
+//! show it only their backs never converged: that coverage counts backs.)
+//! Without a direct pass (no `--env`), a patch's coverage is the share of
+//! its hemicube that sees a surface's front, measured on its first shot
+//! (`finish`; 1 before), and the light put in is weighted by the share of
+//! shot light that landed so far: both count fronts alone.
 //!
 //! Overlapping surfaces (`overlaps`) count for their share of the area: in
 //! the unshot power, in the form-factor sums and in the received power.
