@@ -495,7 +495,8 @@ impl Tally {
         let unshot_power = stats.unsettled as f64;
         let unshot_fraction = if sums.power_in > 0.0 { unshot_power / sums.power_in } else { 0.0 };
         let closure = sums.initial_closure.unwrap_or_else(|| measured_closure(self.received_total, self.shot_total));
-        let ambient = ambient_term(stats.unshot, closure, sums.mean_albedo, sums.total_area);
+        let unshot = stats.unshot.map(|u| u.max(0.0));
+        let ambient = ambient_term(unshot, closure, sums.mean_albedo, sums.total_area);
         let error_estimate =
             if self.gathered > 0.0 { luminance(ambient) * sums.total_area / self.gathered } else { 0.0 };
         let seconds = self.start.elapsed().as_secs_f64() - self.probe_seconds;
@@ -737,13 +738,15 @@ fn measured_closure(received: f64, shot: f64) -> f64 {
 /// The light still unshot, spread evenly over the scene as incident
 /// radiance (L_lm): U·f / (A (1 − ρ̄ f)) per channel, where f is the share of
 /// shot light the scene catches (1 in a closed room, Cohen et al.'s case).
+/// Where more light is owed than unshot (shot ahead, never received), U is
+/// negative and so is the term: the light delivered ahead is taken back.
 fn ambient_term(unshot: [f32; 4], closure: f64, albedo: [f64; 3], area: f64) -> [f64; 3] {
     if area <= 0.0 {
         return [0.0; 3];
     }
     [0, 1, 2].map(|c| {
         let reflect = (albedo[c] * closure).min(0.999);
-        unshot[c].max(0.0) as f64 * closure / (area * (1.0 - reflect))
+        unshot[c] as f64 * closure / (area * (1.0 - reflect))
     })
 }
 
@@ -782,7 +785,8 @@ mod tests {
         // Nothing lands in an open scene, on no area, or from negative power.
         assert_eq!(ambient_term([1.0; 4], 0.0, [0.5; 3], 1.0), [0.0; 3]);
         assert_eq!(ambient_term([1.0; 4], 1.0, [0.5; 3], 0.0), [0.0; 3]);
-        assert_eq!(ambient_term([-1.0, 0.0, 0.0, 0.0], 1.0, [0.5; 3], 1.0), [0.0; 3]);
+        // Light owed is taken back: −1 owed in a closed room of ρ 0.5, area 1.
+        assert_eq!(ambient_term([-1.0, 0.0, 0.0, 0.0], 1.0, [0.5; 3], 1.0), [-2.0, 0.0, 0.0]);
     }
 
     #[test]
