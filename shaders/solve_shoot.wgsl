@@ -58,8 +58,8 @@ struct ShooterCells {
 // Per patch: its slot + 1 when it shoots in this batch, else 0 (solve_select).
 @group(0) @binding(14) var<storage, read> chosen: array<u32>;
 // Per group of 64 receivers in `members`' order (a workgroup of `main`):
-// the slots that may light one of them, a bit each (solve_shooter_cull).
-@group(0) @binding(15) var<storage, read> group_shooters: array<u32>;
+// the slots that may light one of them (solve_shooter_cull).
+@group(0) @binding(15) var<storage, read> group_shooters: array<vec2<u32>>;
 // The receivers in the order `main` and `measure` take them: by patch,
 // so that a group of 64 lies in one or two atlas cells, whose bounds
 // leave out more shooters than a run along an atlas row.
@@ -101,12 +101,12 @@ fn slot_scale(k: u32) -> f32 {
 
 struct NearList {
     count: atomic<u32>,
-    // (texel index, bit k set for each shooter slot k in whose near field it
-    // is, its own curved patch's included)
-    entries: array<vec2<u32>>,
+    // Three words an entry: the texel's index, then the set of slots in
+    // whose near field it is, its own curved patch's included.
+    entries: array<u32>,
 }
 
-const SHOOTER_CELLS: u32 = 1536u;  // MAX_SHOOTERS · SUB_CELL_ROWS · SUB_CELL_COUNT
+const SHOOTER_CELLS: u32 = 3072u;  // MAX_SHOOTERS · SUB_CELL_ROWS · SUB_CELL_COUNT
 // Texels one measure workgroup sums (64 invocations × 64 texels).
 const MEASURE_CHUNK: u32 = 4096u;
 // Bounds on the far-field scale: a patch that needs more has geometry the
@@ -344,7 +344,7 @@ fn main(
     let own_slot = select(0u, chosen_as - 1u, shot);
     // Only the slots that may light the texel's group, in slot order.
     var slots = group_shooters[j / 64u];
-    if (slots == 0u && !shot) {
+    if (no_slots(slots) && !shot) {
         // Nothing reaches it and it keeps its light: only the record of
         // what it received is cleared, and its sums are never read.
         unshot[i].w = 0.0;
@@ -352,22 +352,23 @@ fn main(
     }
     let texel = r.texel;
     var gathered = vec3f(0.0);
-    var near_slots = 0u;
+    var near_slots = vec2<u32>(0u);
     if (shot) {
-        slots &= ~(1u << own_slot);
+        slots &= ~slot_bit(own_slot);
         if (is_curved(own_slot)) {
-            near_slots = 1u << own_slot;
+            near_slots = slot_bit(own_slot);
         }
     }
-    while (slots != 0u) {
-        let k = firstTrailingBit(slots);
-        slots &= slots - 1u;
-        let s = shooters.items[k];
-        let g = shot_geometry(texel, s, k);
-        if (g.x > 0.0) {
-            near_slots |= 1u << k;
-        } else {
-            gathered += g.y * slot_scale(k) * s.radiance;
+    for (var word = 0u; word < 2u; word++) {
+        for (var left = slots[word]; left != 0u; left &= left - 1u) {
+            let k = 32u * word + firstTrailingBit(left);
+            let s = shooters.items[k];
+            let g = shot_geometry(texel, s, k);
+            if (g.x > 0.0) {
+                near_slots |= slot_bit(k);
+            } else {
+                gathered += g.y * slot_scale(k) * s.radiance;
+            }
         }
     }
     lightmap[i] += vec4f(gathered, 0.0);
@@ -377,8 +378,11 @@ fn main(
         remaining = -texel.albedo * shooters.items[own_slot].overshoot;
     }
     unshot[i] = vec4f(remaining + texel.albedo * gathered, luminance(gathered) * texel.area * r.share);
-    if (near_slots != 0u) {
-        near_list.entries[atomicAdd(&near_list.count, 1u)] = vec2<u32>(i, near_slots);
+    if (!no_slots(near_slots)) {
+        let at = 3u * atomicAdd(&near_list.count, 1u);
+        near_list.entries[at] = i;
+        near_list.entries[at + 1u] = near_slots.x;
+        near_list.entries[at + 2u] = near_slots.y;
     }
 }
 
@@ -427,19 +431,21 @@ fn near_field(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgro
     if (j >= atomicLoad(&near_list.count)) {
         return;
     }
-    let entry = near_list.entries[j];
-    let i = entry.x;
+    let i = near_list.entries[3u * j];
+    let slots = vec2<u32>(near_list.entries[3u * j + 1u], near_list.entries[3u * j + 2u]);
     let r = receiver(i);
     let texel = r.texel;
     var gathered = vec3f(0.0);
-    for (var slots = entry.y; slots != 0u; slots &= slots - 1u) {
-        let k = firstTrailingBit(slots);
-        let s = shooters.items[k];
-        // A texel of the shooter's own (curved) patch takes none from its
-        // own sub-cell: flat at its scale, it gives next to none, and its
-        // square would hover over the texel.
-        let skip = select(SUB_CELL_COUNT, sub_cell(texel, params), s.patch_index == r.patch_index);
-        gathered += near_light(texel, s, k, skip);
+    for (var word = 0u; word < 2u; word++) {
+        for (var left = slots[word]; left != 0u; left &= left - 1u) {
+            let k = 32u * word + firstTrailingBit(left);
+            let s = shooters.items[k];
+            // A texel of the shooter's own (curved) patch takes none from its
+            // own sub-cell: flat at its scale, it gives next to none, and its
+            // square would hover over the texel.
+            let skip = select(SUB_CELL_COUNT, sub_cell(texel, params), s.patch_index == r.patch_index);
+            gathered += near_light(texel, s, k, skip);
+        }
     }
     lightmap[i] += vec4f(gathered, 0.0);
     unshot[i] += vec4f(texel.albedo * gathered, luminance(gathered) * texel.area * r.share);
@@ -464,17 +470,18 @@ fn workgroup_sum(value: f32, lid: u32) -> f32 {
     return total;
 }
 
-var<workgroup> slots_to_measure: u32;
+var<workgroup> slots_to_measure: vec2<u32>;
 
-// The slots whose patch has no scale yet, as bits (read by one invocation,
-// so that the whole workgroup branches on them alike).
-fn slots_needing_scale(lid: u32) -> u32 {
+// The slots whose patch has no scale yet (read by one invocation, so that
+// the whole workgroup branches on them alike), of those from `first` to
+// before `end`.
+fn slots_needing_scale(lid: u32, first: u32, end: u32) -> vec2<u32> {
     if (lid == 0u) {
-        var slots = 0u;
-        for (var k = 0u; k < params.shooter_count; k++) {
+        var slots = vec2<u32>(0u);
+        for (var k = first; k < min(end, params.shooter_count); k++) {
             let s = shooters.items[k];
             if (s.patch_index != NO_TRIANGLE && patch_scale[s.patch_index] <= 0.0) {
-                slots |= 1u << k;
+                slots |= slot_bit(k);
             }
         }
         slots_to_measure = slots;
@@ -483,7 +490,7 @@ fn slots_needing_scale(lid: u32) -> u32 {
 }
 
 // Slots one measure workgroup sums for (`shoot::measure_slots_for`): 8 or all
-// 32. The sums are the same either way.
+// 64. The sums are the same either way.
 override MEASURE_SLOTS: u32 = 8u;
 // Texels one invocation of the measure pass sums (`MEASURE_CHUNK` / 64).
 const MEASURE_TURNS: u32 = MEASURE_CHUNK / 64u;
@@ -496,8 +503,8 @@ const MEASURE_TURNS: u32 = MEASURE_CHUNK / 64u;
 @compute @workgroup_size(64)
 fn measure(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let base = group.y * MEASURE_SLOTS;
-    let slots = slots_needing_scale(lid) & ((0xffffffffu >> (32u - MEASURE_SLOTS)) << base);
-    if (slots == 0u) {
+    let slots = slots_needing_scale(lid, base, base + MEASURE_SLOTS);
+    if (no_slots(slots)) {
         return;
     }
     var near = array<f32, MAX_SHOOTERS>();
@@ -506,7 +513,7 @@ fn measure(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
     // their exact form factors are summed after the far field, where they
     // cost the few lanes that have them rather than every pair.
     var near_turns = array<u32, MEASURE_TURNS>();
-    var near_slots = array<u32, MEASURE_TURNS>();
+    var near_slots = array<vec2<u32>, MEASURE_TURNS>();
     var near_count = 0u;
     let first = group.x * MEASURE_CHUNK;
     let end = min(first + MEASURE_CHUNK, params.texel_count);
@@ -516,20 +523,23 @@ fn measure(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
         let texel = r.texel;
         let own_patch = r.patch_index;
         let share = r.share;
-        var listed = 0u;
-        for (var left = slots & group_shooters[j / 64u]; left != 0u; left &= left - 1u) {
-            let k = firstTrailingBit(left);
-            let s = shooters.items[k];
-            if (own_patch != s.patch_index) {
-                let g = shot_geometry(texel, s, k);
-                if (g.x > 0.0) {
-                    listed |= 1u << k;
-                } else {
-                    far[k - base] += g.y * texel.area * share;
+        var listed = vec2<u32>(0u);
+        let lit = slots & group_shooters[j / 64u];
+        for (var word = 0u; word < 2u; word++) {
+            for (var left = lit[word]; left != 0u; left &= left - 1u) {
+                let k = 32u * word + firstTrailingBit(left);
+                let s = shooters.items[k];
+                if (own_patch != s.patch_index) {
+                    let g = shot_geometry(texel, s, k);
+                    if (g.x > 0.0) {
+                        listed |= slot_bit(k);
+                    } else {
+                        far[k - base] += g.y * texel.area * share;
+                    }
                 }
             }
         }
-        if (listed != 0u) {
+        if (!no_slots(listed)) {
             near_turns[near_count] = turn;
             near_slots[near_count] = listed;
             near_count++;
@@ -539,19 +549,23 @@ fn measure(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
         let r = receiver(members[first + lid + near_turns[n] * 64u]);
         let texel = r.texel;
         let share = r.share;
-        for (var left = near_slots[n]; left != 0u; left &= left - 1u) {
-            let k = firstTrailingBit(left);
-            near[k - base] += near_form_factor(texel, shooters.items[k], k) * texel.area * share;
+        for (var word = 0u; word < 2u; word++) {
+            for (var left = near_slots[n][word]; left != 0u; left &= left - 1u) {
+                let k = 32u * word + firstTrailingBit(left);
+                near[k - base] += near_form_factor(texel, shooters.items[k], k) * texel.area * share;
+            }
         }
     }
-    for (var left = slots; left != 0u; left &= left - 1u) {
-        let k = firstTrailingBit(left);
-        let sum = vec2f(near[k - base], far[k - base]) / max(shooters.items[k].area, 1e-30);
-        // Near-field sums first, then far-field ones.
-        for (var part = 0u; part < 2u; part++) {
-            let total = workgroup_sum(sum[part], lid);
-            if (lid == 0u) {
-                partials[(part * MAX_SHOOTERS + k) * params.chunk_count + group.x] = total;
+    for (var word = 0u; word < 2u; word++) {
+        for (var left = slots[word]; left != 0u; left &= left - 1u) {
+            let k = 32u * word + firstTrailingBit(left);
+            let sum = vec2f(near[k - base], far[k - base]) / max(shooters.items[k].area, 1e-30);
+            // Near-field sums first, then far-field ones.
+            for (var part = 0u; part < 2u; part++) {
+                let total = workgroup_sum(sum[part], lid);
+                if (lid == 0u) {
+                    partials[(part * MAX_SHOOTERS + k) * params.chunk_count + group.x] = total;
+                }
             }
         }
     }
@@ -570,7 +584,7 @@ fn seen_from_front(stored: f32) -> bool {
 @compute @workgroup_size(64)
 fn finish(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let k = group.x;
-    if ((slots_needing_scale(lid) & (1u << k)) == 0u) {
+    if (no_slots(slots_needing_scale(lid, k, k + 1u))) {
         // Scaled when it shot before (or an unused slot).
         let patch_index = shooters.items[k].patch_index;
         if (lid == 0u && patch_index != NO_TRIANGLE) {

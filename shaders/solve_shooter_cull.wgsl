@@ -31,8 +31,8 @@ struct ReceiverGroup {
 @group(0) @binding(0) var<uniform> params: BounceParams;
 @group(0) @binding(1) var<uniform> shooters: ShooterBatch;
 @group(0) @binding(2) var<storage, read> groups: array<ReceiverGroup>;
-// Per group: bit k set when slot k may light one of its texels (written).
-@group(0) @binding(3) var<storage, read_write> group_shooters: array<u32>;
+// Per group: the slots that may light one of its texels (written).
+@group(0) @binding(3) var<storage, read_write> group_shooters: array<vec2<u32>>;
 // Per group: the lowest and highest patch of its texels (`members` runs by patch).
 @group(0) @binding(4) var<storage, read> group_patches: array<vec2u>;
 // Per group: 1 where its texels' record of light received (`unshot`'s w)
@@ -83,12 +83,12 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let group = groups[g];
     let patches = group_patches[g];
-    var mask = 0u;
+    var mask = vec2<u32>(0u);
     var shooting = false;
     for (var k = 0u; k < params.shooter_count; k++) {
         let s = shooters.items[k];
         if (s.patch_index != NO_TRIANGLE && may_light(group, s)) {
-            mask |= 1u << k;
+            mask |= slot_bit(k);
         }
         shooting = shooting || (s.patch_index >= patches.x && s.patch_index <= patches.y);
     }
@@ -96,10 +96,11 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     // `main` visits the group where a slot may light it, where a patch of
     // it shoots (its unshot light leaves), and where it clears the record
     // of what its texels received in the last batch.
-    if (mask != 0u || shooting || group_received[g] != 0u) {
+    let lit = !no_slots(mask);
+    if (lit || shooting || group_received[g] != 0u) {
         gathered.groups[atomicAdd(&gathered.filling, 1u)] = g;
     }
-    group_received[g] = select(0u, 1u, mask != 0u || shooting);
+    group_received[g] = select(0u, 1u, lit || shooting);
 }
 
 // `main`'s workgroups from the list's length, on the GPU; the list empties

@@ -38,9 +38,20 @@ struct Shooter {
 // (half texels), is in contact with it.
 const CONTACT: f32 = 0.1;
 
-// Shooter slots per batch (`bounce::MAX_SHOOTERS`): a near-field
-// receiver's slots are the bits of one u32.
-const MAX_SHOOTERS: u32 = 32u;
+// Shooter slots per batch (`bounce::MAX_SHOOTERS`). A set of slots (those
+// that may light a group of receivers, those a receiver is near) is a
+// vec2<u32>: slot k is bit k % 32 of word k / 32.
+const MAX_SHOOTERS: u32 = 64u;
+
+// The set of slot `k` alone.
+fn slot_bit(k: u32) -> vec2<u32> {
+    let bit = 1u << (k & 31u);
+    return select(vec2<u32>(bit, 0u), vec2<u32>(0u, bit), k >= 32u);
+}
+
+fn no_slots(slots: vec2<u32>) -> bool {
+    return all(slots == vec2<u32>(0u));
+}
 
 // A batch's shooters, as a uniform buffer.
 struct ShooterBatch {

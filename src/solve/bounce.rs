@@ -83,10 +83,10 @@ use crate::reference::Probes;
 use crate::scene::Scene;
 use crate::texelize::TexelSet;
 
-/// Shooter slots per batch (`MAX_SHOOTERS` in include/bounce.wgsl): a near-field
-/// receiver lists the slots it is near as bits of one u32.
-pub const MAX_SHOOTERS: u32 = 32;
-const _: () = assert!(MAX_SHOOTERS <= u32::BITS);
+/// Shooter slots per batch (`MAX_SHOOTERS` in include/bounce.wgsl): the
+/// shaders hold a set of slots as the bits of two u32s.
+pub const MAX_SHOOTERS: u32 = 64;
+const _: () = assert!(MAX_SHOOTERS <= 2 * u32::BITS);
 /// Normalize the form factors only where the scene catches at least this
 /// much of the light it reflects (mean albedo × covered share): below it, a
 /// loss of a few percent per bounce changes the lightmap by well under 1 %
@@ -108,7 +108,7 @@ pub struct BounceOptions {
     pub max_seconds: Option<f64>,
     /// About how many shooter patches to group the texels into.
     pub patches: u32,
-    /// Shooters per GPU batch (at most 32).
+    /// Shooters per GPU batch (at most 64).
     pub shooters_per_batch: u32,
     /// Hemicube face width in texels.
     pub hemicube_size: u32,
@@ -120,7 +120,7 @@ pub struct BounceOptions {
     /// point (`--reference`); `None`: not measured.
     pub probes: Option<std::sync::Arc<Probes>>,
     /// Shooter slots one workgroup of the form-factor measure sums for, 8 or
-    /// 32 (`None`: chosen for the adapter, `shoot::measure_slots_for`); the
+    /// 64 (`None`: chosen for the adapter, `shoot::measure_slots_for`); the
     /// sums are the same either way.
     pub measure_slots: Option<u32>,
     /// Wait on the GPU after each pass of every batch and record its seconds
@@ -136,7 +136,7 @@ impl Default for BounceOptions {
             max_shots: None,
             max_seconds: None,
             patches: 1024,
-            shooters_per_batch: 32,
+            shooters_per_batch: MAX_SHOOTERS,
             hemicube_size: 128,
             face_list_bytes: 64 << 20,
             probes: None,

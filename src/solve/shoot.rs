@@ -15,9 +15,9 @@ use crate::gpu::{self, Gpu, Shader};
 /// (`MEASURE_CHUNK` in solve_shoot.wgsl).
 pub(super) const MEASURE_CHUNK: u32 = 4096;
 /// Shooter slots one workgroup of the measure pass sums for
-/// (`MEASURE_SLOTS` in solve_shoot.wgsl) where it does not take all 32.
+/// (`MEASURE_SLOTS` in solve_shoot.wgsl) where it does not take all of them.
 const NARROW_MEASURE_SLOTS: u32 = 8;
-/// A CPU driver's measure workgroups take all 32 slots where the texel
+/// A CPU driver's measure workgroups take all the slots where the texel
 /// chunks alone give each of its threads (one a core) this many workgroups:
 /// each texel's reads then serve every slot at once (the pass's time fell by
 /// a fifth to a quarter in the closed rooms of BENCHMARKS.md). A GPU keeps
@@ -84,10 +84,10 @@ impl Buffers {
                 (2 * MAX_SHOOTERS * chunk_count) as usize,
                 none,
             ),
-            // A count (padded to 8 bytes), then at most one entry per texel.
-            near_list: gpu.zeroed_storage_buffer::<[u32; 2]>(
+            // A count, then at most one entry (three words) per texel.
+            near_list: gpu.zeroed_storage_buffer::<u32>(
                 "solve_shoot near-field receivers",
-                1 + inputs.texels.texels.len().max(1),
+                1 + 3 * inputs.texels.texels.len().max(1),
                 wgpu::BufferUsages::COPY_DST,
             ),
             near_args: gpu.zeroed_storage_buffer::<u32>(
@@ -145,7 +145,7 @@ impl Shoot {
 
     /// Empties the near-field list (its count), first in each batch.
     pub(super) fn clear_near_list(&self, encoder: &mut wgpu::CommandEncoder) {
-        encoder.clear_buffer(&self.near_list, 0, Some(8));
+        encoder.clear_buffer(&self.near_list, 0, Some(4));
     }
 
     /// Where the form factors are normalized, their sums for each patch
@@ -309,7 +309,7 @@ fn measure_pipeline(gpu: &Gpu, slots: u32) -> wgpu::ComputePipeline {
     gpu.compute_pipeline_with(Shader::SolveShoot, "measure", &[&layout], &[("MEASURE_SLOTS", slots as f64)])
 }
 
-/// The pass's pipelines: `measure` over 8 slots a workgroup and over 32
+/// The pass's pipelines: `measure` over 8 slots a workgroup and over 64
 /// (on a CPU driver), `finish`, `main`, `near_dispatch` and `near_field`
 /// (built once per device, `solve::warm`).
 pub(super) fn pipelines(gpu: &Gpu) -> [wgpu::ComputePipeline; 6] {

@@ -68,7 +68,7 @@ impl ShooterCull {
         let none = wgpu::BufferUsages::empty();
         let bounds = gpu.storage_buffer("solve_shooter_cull groups", &groups, none);
         let patches = gpu.storage_buffer("solve_shooter_cull group patches", &patches, none);
-        let group_shooters = gpu.zeroed_storage_buffer::<u32>("solve_shooter_cull masks", groups.len(), none);
+        let group_shooters = gpu.zeroed_storage_buffer::<[u32; 2]>("solve_shooter_cull masks", groups.len(), none);
         let received = gpu.zeroed_storage_buffer::<u32>("solve_shooter_cull received", groups.len(), none);
         // Two counts, then at most every group.
         let gathered = gpu.zeroed_storage_buffer::<u32>("solve_shooter_cull gathered", 2 + groups.len(), none);

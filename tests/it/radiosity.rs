@@ -90,7 +90,7 @@ fn a_converged_closed_room_counts_the_light_it_had_left_to_shoot() {
 
 #[test]
 fn the_form_factor_measure_sums_alike_over_any_slots_a_workgroup() {
-    // A CPU driver's measure workgroups take all 32 shooter slots of a batch
+    // A CPU driver's measure workgroups take all 64 shooter slots of a batch
     // where the texels are many, a GPU's 8: each slot's sums must come out
     // the same bits either way, or a bake would depend on the adapter's kind
     // and the scene's size. A room with walls of different albedos, some
@@ -104,7 +104,7 @@ fn the_form_factor_measure_sums_alike_over_any_slots_a_workgroup() {
     };
     let narrow = bake_with(8);
     assert!(narrow.solution.bounce.as_ref().is_some_and(|b| b.normalized && b.shots == 512));
-    for slots in [32, 5] {
+    for slots in [64, 32, 5] {
         let other = bake_with(slots);
         let same = narrow
             .solution
