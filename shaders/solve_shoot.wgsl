@@ -359,16 +359,14 @@ fn main(
             near_slots = slot_bit(own_slot);
         }
     }
-    for (var word = 0u; word < 2u; word++) {
-        for (var left = slots[word]; left != 0u; left &= left - 1u) {
-            let k = 32u * word + firstTrailingBit(left);
-            let s = shooters.items[k];
-            let g = shot_geometry(texel, s, k);
-            if (g.x > 0.0) {
-                near_slots |= slot_bit(k);
-            } else {
-                gathered += g.y * slot_scale(k) * s.radiance;
-            }
+    for (var left = slots; !no_slots(left); left = without_first(left)) {
+        let k = first_slot(left);
+        let s = shooters.items[k];
+        let g = shot_geometry(texel, s, k);
+        if (g.x > 0.0) {
+            near_slots |= slot_bit(k);
+        } else {
+            gathered += g.y * slot_scale(k) * s.radiance;
         }
     }
     lightmap[i] += vec4f(gathered, 0.0);
@@ -436,16 +434,14 @@ fn near_field(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgro
     let r = receiver(i);
     let texel = r.texel;
     var gathered = vec3f(0.0);
-    for (var word = 0u; word < 2u; word++) {
-        for (var left = slots[word]; left != 0u; left &= left - 1u) {
-            let k = 32u * word + firstTrailingBit(left);
-            let s = shooters.items[k];
-            // A texel of the shooter's own (curved) patch takes none from its
-            // own sub-cell: flat at its scale, it gives next to none, and its
-            // square would hover over the texel.
-            let skip = select(SUB_CELL_COUNT, sub_cell(texel, params), s.patch_index == r.patch_index);
-            gathered += near_light(texel, s, k, skip);
-        }
+    for (var left = slots; !no_slots(left); left = without_first(left)) {
+        let k = first_slot(left);
+        let s = shooters.items[k];
+        // A texel of the shooter's own (curved) patch takes none from its
+        // own sub-cell: flat at its scale, it gives next to none, and its
+        // square would hover over the texel.
+        let skip = select(SUB_CELL_COUNT, sub_cell(texel, params), s.patch_index == r.patch_index);
+        gathered += near_light(texel, s, k, skip);
     }
     lightmap[i] += vec4f(gathered, 0.0);
     unshot[i] += vec4f(texel.albedo * gathered, luminance(gathered) * texel.area * r.share);
@@ -525,17 +521,15 @@ fn measure(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
         let share = r.share;
         var listed = vec2<u32>(0u);
         let lit = slots & group_shooters[j / 64u];
-        for (var word = 0u; word < 2u; word++) {
-            for (var left = lit[word]; left != 0u; left &= left - 1u) {
-                let k = 32u * word + firstTrailingBit(left);
-                let s = shooters.items[k];
-                if (own_patch != s.patch_index) {
-                    let g = shot_geometry(texel, s, k);
-                    if (g.x > 0.0) {
-                        listed |= slot_bit(k);
-                    } else {
-                        far[k - base] += g.y * texel.area * share;
-                    }
+        for (var left = lit; !no_slots(left); left = without_first(left)) {
+            let k = first_slot(left);
+            let s = shooters.items[k];
+            if (own_patch != s.patch_index) {
+                let g = shot_geometry(texel, s, k);
+                if (g.x > 0.0) {
+                    listed |= slot_bit(k);
+                } else {
+                    far[k - base] += g.y * texel.area * share;
                 }
             }
         }
@@ -549,23 +543,19 @@ fn measure(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
         let r = receiver(members[first + lid + near_turns[n] * 64u]);
         let texel = r.texel;
         let share = r.share;
-        for (var word = 0u; word < 2u; word++) {
-            for (var left = near_slots[n][word]; left != 0u; left &= left - 1u) {
-                let k = 32u * word + firstTrailingBit(left);
-                near[k - base] += near_form_factor(texel, shooters.items[k], k) * texel.area * share;
-            }
+        for (var left = near_slots[n]; !no_slots(left); left = without_first(left)) {
+            let k = first_slot(left);
+            near[k - base] += near_form_factor(texel, shooters.items[k], k) * texel.area * share;
         }
     }
-    for (var word = 0u; word < 2u; word++) {
-        for (var left = slots[word]; left != 0u; left &= left - 1u) {
-            let k = 32u * word + firstTrailingBit(left);
-            let sum = vec2f(near[k - base], far[k - base]) / max(shooters.items[k].area, 1e-30);
-            // Near-field sums first, then far-field ones.
-            for (var part = 0u; part < 2u; part++) {
-                let total = workgroup_sum(sum[part], lid);
-                if (lid == 0u) {
-                    partials[(part * MAX_SHOOTERS + k) * params.chunk_count + group.x] = total;
-                }
+    for (var left = slots; !no_slots(left); left = without_first(left)) {
+        let k = first_slot(left);
+        let sum = vec2f(near[k - base], far[k - base]) / max(shooters.items[k].area, 1e-30);
+        // Near-field sums first, then far-field ones.
+        for (var part = 0u; part < 2u; part++) {
+            let total = workgroup_sum(sum[part], lid);
+            if (lid == 0u) {
+                partials[(part * MAX_SHOOTERS + k) * params.chunk_count + group.x] = total;
             }
         }
     }

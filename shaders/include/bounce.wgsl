@@ -53,6 +53,19 @@ fn no_slots(slots: vec2<u32>) -> bool {
     return all(slots == vec2<u32>(0u));
 }
 
+// The lowest slot of a set that has one. A loop takes a set's slots one a
+// turn, from both words in one loop: a CPU driver runs a loop's turns for
+// all of a SIMD group's lanes until the busiest is done, and the busiest in
+// each word of two loops need not be the same lane.
+fn first_slot(slots: vec2<u32>) -> u32 {
+    return select(32u + firstTrailingBit(slots.y), firstTrailingBit(slots.x), slots.x != 0u);
+}
+
+// The set without its lowest slot.
+fn without_first(slots: vec2<u32>) -> vec2<u32> {
+    return select(vec2<u32>(0u, slots.y & (slots.y - 1u)), vec2<u32>(slots.x & (slots.x - 1u), slots.y), slots.x != 0u);
+}
+
 // A batch's shooters, as a uniform buffer.
 struct ShooterBatch {
     items: array<Shooter, MAX_SHOOTERS>,
