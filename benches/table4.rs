@@ -101,7 +101,7 @@ struct Args {
     /// Shooter patches of the grid bakes' bounce pass (`bake --patches`).
     #[arg(long, default_value_t = bake::solve::BounceOptions::default().patches)]
     patches: u32,
-    /// Shooters per GPU batch of the grid bakes' bounce pass (at most 32).
+    /// Shooters per GPU batch of the grid bakes' bounce pass (at most 64).
     #[arg(long, default_value_t = bake::solve::BounceOptions::default().shooters_per_batch)]
     shooters_per_batch: u32,
     /// Passed by `cargo bench`; ignored.

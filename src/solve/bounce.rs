@@ -114,7 +114,7 @@ pub struct BounceOptions {
     pub hemicube_size: u32,
     /// Memory for the lists of casters each hemicube face can see
     /// (`hemicube_cull`): a face whose list would not fit draws every
-    /// caster, as every face does at 0.
+    /// caster, as every face does at 0. The default is 2 MiB a shooter slot.
     pub face_list_bytes: u64,
     /// Texels whose error against a reference is recorded at every trace
     /// point (`--reference`); `None`: not measured.
@@ -138,7 +138,7 @@ impl Default for BounceOptions {
             patches: 1024,
             shooters_per_batch: MAX_SHOOTERS,
             hemicube_size: 128,
-            face_list_bytes: 64 << 20,
+            face_list_bytes: 128 << 20,
             probes: None,
             measure_slots: None,
             time_passes: false,

@@ -82,8 +82,11 @@ pub(super) fn params(
     let radius = scene_radius(scene);
     let shooter_count = options.shooters_per_batch.clamp(1, MAX_SHOOTERS);
     let face = options.hemicube_size.clamp(16, 2048);
-    let tiles_per_row = ((gpu.limits.max_texture_dimension_2d / (3 * face)).max(1)).min(shooter_count);
-    let tile_rows = shooter_count.div_ceil(tiles_per_row);
+    // As few rows as the texture's width allows, filled evenly: the atlas
+    // is cleared and bound whole every batch, an unused tile included.
+    let widest = (gpu.limits.max_texture_dimension_2d / (3 * face)).max(1);
+    let tile_rows = shooter_count.div_ceil(widest);
+    let tiles_per_row = shooter_count.div_ceil(tile_rows);
     let texel_world = 1.0 / texels_per_unit.max(1e-30);
     let patch_groups = gpu.dispatch_size(patches.patches.len() as u32, 64);
     let params = BounceParams {
