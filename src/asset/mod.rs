@@ -88,7 +88,7 @@ impl SourceAsset {
         let mut json = json;
         let mut buffers = Vec::new();
         for buffer in document.buffers() {
-            let data = match buffer.source() {
+            let mut data = match buffer.source() {
                 // Filled by decoding the views that point into it.
                 _ if meshopt::is_fallback(&json, buffer.index()) => Vec::new(),
                 gltf::buffer::Source::Bin => blob
@@ -106,6 +106,11 @@ impl SourceAsset {
                     buffer.length()
                 );
             }
+            // The buffer is its declared bytes (a GLB's BIN chunk may pad it
+            // to 4): a view reaching past them is refused (`view_bytes`), as
+            // the spec and its validator ask, not read from the padding or
+            // whatever the file holds beyond.
+            data.truncate(buffer.length());
             buffers.push(data);
         }
         let decoded = meshopt::decode(&mut json, &mut buffers)? + draco::decode(&mut json, &mut buffers)?;

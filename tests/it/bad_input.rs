@@ -261,6 +261,12 @@ fn huge_declared_counts_are_refused_before_allocating() {
     json["buffers"][0]["byteLength"] = json!(1u64 << 40);
     case.write("buffer.glb", &glb(&json, &bin));
     case.refused(&["buffer.glb"], "buffer.glb", "buffer 0 is truncated: 66880 bytes of the declared 1099511627776");
+    // Declared shorter than its views: the bytes past the declared length
+    // are not the buffer's, though the file holds them.
+    let (mut json, bin) = parts();
+    json["buffers"][0]["byteLength"] = json!(66_000);
+    case.write("short_buffer.glb", &glb(&json, &bin));
+    case.refused(&["short_buffer.glb"], "short_buffer.glb", "runs past the end of buffer 0 (66000 bytes)");
     // A sparse accessor with no buffer view is zeros plus its sparse values:
     // its count alone decides the size.
     let (mut json, bin) = parts();
