@@ -106,7 +106,7 @@ struct NearList {
     entries: array<u32>,
 }
 
-const SHOOTER_CELLS: u32 = 3072u;  // MAX_SHOOTERS · SUB_CELL_ROWS · SUB_CELL_COUNT
+const SHOOTER_CELLS: u32 = MAX_SHOOTERS * SUB_CELL_ROWS * SUB_CELL_COUNT;
 // Texels one measure workgroup sums (64 invocations × 64 texels).
 const MEASURE_CHUNK: u32 = 4096u;
 // Bounds on the far-field scale: a patch that needs more has geometry the
