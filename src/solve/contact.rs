@@ -195,7 +195,7 @@ pub fn fix(geometry: &Geometry, direct: &Direct, lightmap: &mut [[f32; 3]], cell
                 let sum = contact.hits.iter().fold(DVec3::ZERO, |sum, &j| {
                     let t = &texels.texels[j as usize];
                     let l = lightmap[j as usize];
-                    sum + DVec3::from_array([0, 1, 2].map(|c| (t.albedo[c] * l[c]) as f64))
+                    sum + (Vec3::from(t.albedo) * Vec3::from(l)).as_dvec3()
                 });
                 let mean = sum / rays;
                 [mean.x as f32, mean.y as f32, mean.z as f32]
