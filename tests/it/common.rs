@@ -4,6 +4,7 @@
 #![allow(dead_code)]
 
 use std::path::Path;
+use std::sync::Mutex;
 
 use bake::Baked;
 use bake::config::BakeOptions;
@@ -12,11 +13,39 @@ use bake::fixtures::{MeshData, SceneBuilder};
 use bake::gpu::Gpu;
 use bake::progress::Silent;
 
-/// The adapter wgpu picks (lavapipe in CI). Prints its name so a log says what ran.
-pub fn gpu() -> Gpu {
-    let gpu = Gpu::new(None).expect("no GPU adapter: install mesa-vulkan-drivers and libvulkan1");
+/// Devices that finished tests handed back, each with the pipelines its bakes
+/// built: opening lavapipe and building a bake's pipelines is most of a small
+/// bake's time, and a run of several scenes shares them the same way.
+static SPARE_GPUS: Mutex<Vec<Gpu>> = Mutex::new(Vec::new());
+
+/// A device for one test at a time: the adapter wgpu picks (lavapipe in CI),
+/// a spare one if a finished test left it. Prints its name so a log says what ran.
+pub fn gpu() -> TestGpu {
+    let spare = SPARE_GPUS.lock().unwrap().pop();
+    let gpu =
+        spare.unwrap_or_else(|| Gpu::new(None).expect("no GPU adapter: install mesa-vulkan-drivers and libvulkan1"));
     eprintln!("adapter: {}", gpu.adapter);
-    gpu
+    TestGpu(Some(gpu))
+}
+
+/// A test's device, handed back as a spare when the test is done with it,
+/// unless the test failed or left the device lost or with an error unread.
+pub struct TestGpu(Option<Gpu>);
+
+impl std::ops::Deref for TestGpu {
+    type Target = Gpu;
+    fn deref(&self) -> &Gpu {
+        self.0.as_ref().expect("held until dropped")
+    }
+}
+
+impl Drop for TestGpu {
+    fn drop(&mut self) {
+        let Some(gpu) = self.0.take() else { return };
+        if !std::thread::panicking() && gpu.check("a finished test").is_ok() {
+            SPARE_GPUS.lock().unwrap().push(gpu);
+        }
+    }
 }
 
 /// Imports a fixture scene from its in-memory GLB.
