@@ -231,7 +231,8 @@ impl<'a> Fine<'a> {
                 if l == [0.0; 3] {
                     continue;
                 }
-                let e = l.map(|v| v as f64 * om);
+                // Not `l.map`: an array map called per sample is not inlined without LTO.
+                let e = [l[0] as f64 * om, l[1] as f64 * om, l[2] as f64 * om];
                 let lw = luminance(l).max(0.0) * om;
                 for fc in c * self.ux..(c + 1) * self.ux {
                     let (cp, sp) = self.cols[fc];

@@ -262,8 +262,16 @@ impl EnvironmentMap {
     /// The index and value of the largest channel value of any texel (`None` for an empty map);
     /// NaN is passed over.
     pub fn brightest(&self) -> Option<(usize, f32)> {
-        let channels = self.texels.iter().enumerate().flat_map(|(i, t)| t.iter().map(move |&v| (i, v)));
-        channels.filter(|(_, v)| !v.is_nan()).max_by(|a, b| a.1.total_cmp(&b.1))
+        let mut brightest: Option<(usize, f32)> = None;
+        for (i, texel) in self.texels.iter().enumerate() {
+            for &v in texel {
+                // Of equal values the last, as `Iterator::max_by` would give.
+                if !v.is_nan() && brightest.is_none_or(|(_, b)| v.total_cmp(&b).is_ge()) {
+                    brightest = Some((i, v));
+                }
+            }
+        }
+        brightest
     }
 
     /// Builds a `width×height` map by evaluating `f` at every pixel centre direction (unit
@@ -350,7 +358,8 @@ impl EnvironmentMap {
     fn direction_of(width: u32, height: u32, col: u32, row: u32) -> [f32; 3] {
         let phi = ((col as f64 + 0.5) / width as f64 - 0.5) * 2.0 * PI;
         let theta = (row as f64 + 0.5) / height as f64 * PI;
-        dir_from_angles(phi, theta).map(|v| v as f32)
+        let [x, y, z] = dir_from_angles(phi, theta);
+        [x as f32, y as f32, z as f32]
     }
 
     /// Unit direction (map space) of the centre of pixel `(col, row)`:
@@ -371,7 +380,7 @@ impl EnvironmentMap {
     /// The pixel `(col, row)` containing direction `d` (map space; need not be normalised).
     /// Inverse of [`EnvironmentMap::pixel_direction`]. A zero or non-finite `d` gives (0, 0).
     pub fn pixel_of(&self, d: [f32; 3]) -> (u32, u32) {
-        let d = d.map(|v| v as f64);
+        let d = [d[0] as f64, d[1] as f64, d[2] as f64];
         let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
         if !(len > 0.0 && len.is_finite()) {
             return (0, 0);
