@@ -41,7 +41,7 @@ const CASTER_WORDS: u32 = 9u;
 struct FaceBatch {
     items: array<HemicubeFace, FACES>,
 }
-const FACES: u32 = 320u;  // 5 · MAX_SHOOTERS
+const FACES: u32 = 5u * MAX_SHOOTERS;
 @group(0) @binding(2) var<uniform> faces: FaceBatch;
 // The casters' indices (opaque, then alpha-MASK), then a list per face.
 @group(0) @binding(3) var<storage, read_write> culled: array<u32>;

@@ -116,7 +116,7 @@ impl Shader {
             Shader::SolvePatchPower => &[TEXEL, BOUNCE, FORM_FACTOR],
             Shader::SolveSelect => &[TEXEL, BOUNCE, HEMICUBE],
             Shader::SolveHemicube => &[TEXEL, BOUNCE, HEMICUBE, MATERIALS],
-            Shader::SolveHemicubeCull => &[TEXEL, HEMICUBE],
+            Shader::SolveHemicubeCull => &[TEXEL, BOUNCE, HEMICUBE],
             Shader::SolveShooterCull => &[TEXEL, BOUNCE],
             Shader::SolveShoot => &[TEXEL, BOUNCE, FORM_FACTOR, HEMICUBE],
             Shader::ProbesGather => &[TEXEL, MATERIALS, TRACE],
