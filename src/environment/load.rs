@@ -578,6 +578,11 @@ fn replace_nonfinite(
     options: &EnvLoadOptions,
     notices: &mut Vec<String>,
 ) -> Result<(), String> {
+    // The common case, every value finite, in one branch-free pass.
+    let values: &[f32] = bytemuck::cast_slice(&map.texels);
+    if values.iter().fold(true, |finite, v| finite & v.is_finite()) {
+        return Ok(());
+    }
     let w = map.width as usize;
     let mut nan = 0usize;
     let mut pos_inf = 0usize;
@@ -639,7 +644,8 @@ fn replace_nonfinite(
 }
 
 /// Clamps negative channel values to 0 (and −0 to +0); gives how many there were and the
-/// energy removed per channel (value × solid angle).
+/// energy removed per channel (value × solid angle). Runs after `replace_nonfinite`: no NaN
+/// is left, which this would turn into 0.
 fn clamp_negative(map: &mut EnvironmentMap) -> (usize, [f64; 3]) {
     let w = map.width as usize;
     let mut neg_count = 0usize;
@@ -649,13 +655,11 @@ fn clamp_negative(map: &mut EnvironmentMap) -> (usize, [f64; 3]) {
         let mut row_removed = [0.0f64; 3];
         for t in texels {
             for c in 0..3 {
-                if t[c] < 0.0 {
-                    neg_count += 1;
-                    row_removed[c] += -(t[c] as f64);
-                    t[c] = 0.0;
-                } else if t[c] == 0.0 {
-                    t[c] = 0.0; // turn −0 into +0
-                }
+                // Branch-free (adding +0 leaves a sum as it was); −0 becomes +0 too.
+                let negative = t[c] < 0.0;
+                neg_count += negative as usize;
+                row_removed[c] += if negative { -(t[c] as f64) } else { 0.0 };
+                t[c] = if t[c] > 0.0 { t[c] } else { 0.0 };
             }
         }
         if row_removed != [0.0; 3] {
