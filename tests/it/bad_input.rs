@@ -838,7 +838,7 @@ fn an_atlas_larger_than_the_adapter_allows_is_refused_naming_the_limit() {
         "its largest texture is",
     );
     // The limit is the adapter's own, named with a number.
-    let gpu = bake::gpu::Gpu::new(None).unwrap();
+    let gpu = common::gpu();
     let max = gpu.limits.max_texture_dimension_2d;
     assert!(line.contains(&format!("{max}×{max} texels")) && line.contains(&gpu.adapter.name), "{line}");
     // One texel over the limit is refused too; the limit itself passes the check.
