@@ -169,9 +169,14 @@ pub fn run_bake(dir: &Path, args: &[&str]) -> std::process::Output {
 /// 64 lights, 64 shots) with `extra`, for the tests that check the files,
 /// not the light.
 pub fn tiny_bake(input: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    tiny_bake_all(&[input], out, extra)
+}
+
+/// As `tiny_bake`, for several inputs in one run (one start-up).
+pub fn tiny_bake_all(inputs: &[&Path], out: &Path, extra: &[&str]) -> std::process::Output {
     let env = repo("fixtures/sky_sun.exr");
     bake_command()
-        .arg(input)
+        .args(inputs)
         .args(["--env".as_ref(), env.as_os_str(), "-o".as_ref(), out.as_os_str()])
         .args(["--max-atlas-size", "64", "--lights", "64", "--max-shots", "64", "-q"])
         .args(extra)

@@ -18,10 +18,8 @@ fn bake(input: &Path, out: &Path, extra: &[&str]) {
 
 /// `inputs` baked in one run, as a build step bakes a folder (one start-up).
 fn bake_all(inputs: &[PathBuf], out: &Path, extra: &[&str]) {
-    let (first, rest) = inputs.split_first().expect("an input");
-    let mut args: Vec<&str> = rest.iter().map(|p| p.to_str().unwrap()).collect();
-    args.extend(extra);
-    let output = common::tiny_bake(first, out, &args);
+    let paths: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+    let output = common::tiny_bake_all(&paths, out, extra);
     assert!(output.status.success(), "bake {inputs:?}: {}", String::from_utf8_lossy(&output.stderr));
 }
 
